@@ -1,0 +1,6 @@
+"""Allow ``python -m dyadbench``."""
+
+from dyadbench.cli import main
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,78 @@
+"""The ``dyadbench`` command line.
+
+Sub-commands live in their own modules and are imported only when invoked, so ``dyadbench --help``
+and ``dyadbench models`` stay fast and never import torch.
+"""
+
+from __future__ import annotations
+
+import importlib
+import sys
+
+import click
+
+from dyadbench import __version__
+from dyadbench.errors import DyadbenchError
+
+# command name -> ("module:attribute", one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "score": ("dyadbench.cli.score:score", "Score predictions on disk against ground truth."),
+    "data": ("dyadbench.cli.data:data", "Generate, validate and describe datasets."),
+    "eval": ("dyadbench.cli.eval:eval_command", "Run a model through the streaming protocol and score it."),
+    "train": ("dyadbench.cli.train:train", "Train a reference model (TIMAR, SFMS, StyGazeTalk)."),
+    "leaderboard": ("dyadbench.cli.leaderboard:leaderboard", "Build CSV/LaTeX leaderboards from result files."),
+    "plot": ("dyadbench.cli.plot:plot", "Plot trajectories and metric-vs-context curves."),
+    "models": ("dyadbench.cli.listing:models", "List registered models and baselines."),
+    "datasets": ("dyadbench.cli.listing:datasets", "List registered datasets and metric suites."),
+}
+
+
+class LazyGroup(click.Group):
+    """A click group whose sub-commands are imported on first use."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return list(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        module_name, _, attr = COMMANDS[cmd_name][0].partition(":")
+        return getattr(importlib.import_module(module_name), attr)
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        rows = [(name, help_text) for name, (_, help_text) in COMMANDS.items()]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="dyadbench")
+def cli() -> None:
+    """dyadbench: score dyadic head-motion models exactly as the published metric scripts do.
+
+    \b
+    Typical use:
+      dyadbench eval --model timar --split ood --context 7
+      dyadbench score preds/ --gt DualTalk/test --out results/
+      dyadbench leaderboard
+    Run `dyadbench COMMAND --help` for the options of each command.
+    """
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: user-facing errors are printed as one line, without a traceback."""
+    try:
+        cli.main(args=argv, prog_name="dyadbench", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("Aborted.", err=True)
+        sys.exit(130)
+    except click.ClickException as exc:
+        exc.show()
+        sys.exit(exc.exit_code)
+    except DyadbenchError as exc:
+        click.echo(f"error: {exc}", err=True)
+        sys.exit(2)
+    except SystemExit:
+        raise
+    except click.exceptions.Exit as exc:
+        sys.exit(exc.exit_code)

@@ -1,0 +1,105 @@
+"""The data model every adapter produces and every model, protocol and metric consumes.
+
+A :class:`DyadicClip` holds both participants of a conversation (or one, for single-speaker gaze–head
+sessions): motion at ``fps`` in a named :mod:`dyadbench.motion` layout, and mono speech at
+``sample_rate``. A :class:`ClipSource` is one split of one dataset, read lazily clip by clip.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterator
+
+import numpy as np
+
+from dyadbench.errors import InputError
+from dyadbench.motion import LAYOUTS, MotionLayout
+
+
+@dataclass(frozen=True)
+class Participant:
+    """One person of a clip: ``motion`` (T, D) float32 in ``layout``; ``audio`` (S,) float32 mono."""
+
+    name: str  # e.g. "speaker1"; prediction files are named "<clip>_<name>"
+    motion: np.ndarray
+    audio: np.ndarray
+    identity: str | None = None  # persistent person/style id when the dataset has one
+
+
+@dataclass(frozen=True)
+class DyadicClip:
+    """A conversation clip: one or two participants, aligned in time from frame 0 / sample 0."""
+
+    clip_id: str
+    participants: tuple[Participant, ...]
+    fps: float = 25.0
+    sample_rate: int = 16_000
+    layout: str = "flame56"
+    meta: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not 1 <= len(self.participants) <= 2:
+            raise InputError(self.clip_id, f"a clip has 1 or 2 participants, got {len(self.participants)}")
+        dim = self.motion_layout.dim
+        for p in self.participants:
+            if p.motion.ndim != 2 or p.motion.shape[1] != dim:
+                raise InputError(f"{self.clip_id}_{p.name}",
+                                 f"motion must be (T, {dim}) for layout {self.layout}, got {p.motion.shape}")
+
+    @property
+    def motion_layout(self) -> MotionLayout:
+        return LAYOUTS[self.layout]
+
+    @property
+    def num_frames(self) -> int:
+        """Common length: the shortest participant's motion (audio is cut to match by the protocol)."""
+        return min(p.motion.shape[0] for p in self.participants)
+
+    @property
+    def duration_s(self) -> float:
+        return self.num_frames / self.fps
+
+    def participant(self, name: str) -> Participant:
+        for p in self.participants:
+            if p.name == name:
+                return p
+        raise KeyError(f"{self.clip_id} has no participant {name!r}")
+
+    def partner_of(self, name: str) -> Participant | None:
+        """The other participant, or None for a single-participant session."""
+        others = [p for p in self.participants if p.name != name]
+        return others[0] if others else None
+
+    def agent_ids(self) -> list[str]:
+        """Prediction stems of every evaluated direction: ``<clip>_<participant>``."""
+        return [f"{self.clip_id}_{p.name}" for p in self.participants]
+
+
+class ClipSource(abc.ABC):
+    """One split of one dataset, read lazily. Subclasses implement ``clip_ids`` and ``load``."""
+
+    dataset: str = "unknown"
+    split: str = "unknown"
+    root: Path | None = None
+
+    @abc.abstractmethod
+    def clip_ids(self) -> list[str]:
+        """Sorted clip identifiers of this split."""
+
+    @abc.abstractmethod
+    def load(self, clip_id: str) -> DyadicClip:
+        """Read one clip from disk (or generate it)."""
+
+    def __len__(self) -> int:
+        return len(self.clip_ids())
+
+    def __iter__(self) -> Iterator[DyadicClip]:
+        for clip_id in self.clip_ids():
+            yield self.load(clip_id)
+
+    def describe(self) -> dict:
+        """Identification recorded in results."""
+        return {"dataset": self.dataset, "split": self.split, "root": str(self.root) if self.root else None,
+                "clips": len(self)}

@@ -1,0 +1,126 @@
+"""The model interface every evaluated model implements (reference models, baselines, users' own).
+
+Streaming models implement :class:`StreamingModel`: the protocol (:mod:`dyadbench.protocol`) calls
+``start_stream`` once per evaluated direction of a clip, then ``predict_turn`` once per turn with
+inputs it has sliced itself, so a model cannot read future frames. Full-sequence models implement
+:class:`OfflineModel` and are run by the offline protocol (recorded as ``protocol = offline``).
+
+Models are created by factories registered in :data:`dyadbench.registry.MODELS`; a factory takes a
+:class:`ModelOptions` and returns a model instance.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from dyadbench.datasets.base import ClipSource
+
+
+@dataclass(frozen=True)
+class ModelInfo:
+    """What a result records about a model."""
+
+    name: str
+    layout: str = "flame56"  # motion layout it produces (dyadbench.motion.LAYOUTS)
+    version: str = "1"
+    weights_digest: str | None = None  # sha256 of the checkpoint file (None: no weights)
+    weights_path: str | None = None
+    oracle: bool = False  # True only for models that read the agent's ground truth (never ranked)
+    config: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ModelOptions:
+    """Everything a model factory may use. ``train_split`` opens the train split lazily (baselines)."""
+
+    weights: Path | None = None
+    seed: int = 0
+    device: str = "cpu"
+    cfg_scale: float = 1.0
+    train_split: Callable[[], ClipSource] | None = None
+    extra: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StreamContext:
+    """One evaluated direction of one clip: the agent is generated, the user is its partner."""
+
+    clip_id: str
+    agent: str  # participant name of the agent, e.g. "speaker1"
+    user: str | None  # partner's name; None for single-participant (gaze–head) sessions
+    fps: float
+    sample_rate: int
+    frames_per_turn: int
+    samples_per_turn: int
+    context_turns: int  # n: history turns given to the model (0 = none)
+    num_turns: int  # turns the protocol will request for this stream
+    seed: int  # per-stream seed derived from the run seed, clip and agent
+    agent_identity: str | None = None
+
+
+@dataclass(frozen=True)
+class TurnInput:
+    """Inputs for turn ``turn``: h = ``history_turns`` = min(turn, n) history turns, then the current one.
+
+    All arrays cover the same window of (h + 1) turns, oldest first; the current turn is the last
+    ``frames_per_turn`` frames / ``samples_per_turn`` samples.
+
+    - ``user_motion`` ((h+1)·F, D_user); D_user = 0 for single-participant sessions.
+    - ``user_audio`` ((h+1)·S,), empty for single-participant sessions.
+    - ``agent_audio`` ((h+1)·S,).
+    - ``agent_history`` (h·F, D): the model's own earlier outputs for the history turns, only when the
+      run's history policy is ``outputs``; ``None`` when history agent motion is masked (default).
+    - ``agent_motion_oracle`` ((h+1)·F, D): the agent's ground truth, given only to models whose
+      :class:`ModelInfo` says ``oracle=True``; ``None`` for every other model.
+    """
+
+    turn: int
+    history_turns: int
+    frames_per_turn: int
+    samples_per_turn: int
+    user_motion: np.ndarray
+    user_audio: np.ndarray
+    agent_audio: np.ndarray
+    agent_history: np.ndarray | None = None
+    agent_motion_oracle: np.ndarray | None = None
+
+    @property
+    def current_user_motion(self) -> np.ndarray:
+        return self.user_motion[-self.frames_per_turn:]
+
+    @property
+    def current_user_audio(self) -> np.ndarray:
+        return self.user_audio[-self.samples_per_turn:] if self.user_audio.size else self.user_audio
+
+    @property
+    def current_agent_audio(self) -> np.ndarray:
+        return self.agent_audio[-self.samples_per_turn:]
+
+
+class StreamingModel(abc.ABC):
+    """A causal model: one turn of agent motion per call."""
+
+    info: ModelInfo
+
+    def start_stream(self, ctx: StreamContext) -> None:
+        """Reset per-stream state (caches, RNG from ``ctx.seed``). Called before the first turn."""
+
+    @abc.abstractmethod
+    def predict_turn(self, turn: TurnInput) -> np.ndarray:
+        """Agent motion of the current turn, shape (frames_per_turn, D), finite floats."""
+
+
+class OfflineModel(abc.ABC):
+    """A full-sequence (non-causal) model, run by the offline protocol."""
+
+    info: ModelInfo
+
+    @abc.abstractmethod
+    def predict_clip(self, ctx: StreamContext, user_motion: np.ndarray, user_audio: np.ndarray,
+                     agent_audio: np.ndarray) -> np.ndarray:
+        """Agent motion for the whole clip, shape (T, D) with T = len(user_motion) (or ctx frames)."""

@@ -1,0 +1,112 @@
+"""Name -> "module:attr" registries for models, datasets and metric suites.
+
+Entries are imported only when used, so listing them (``dyadbench models``) never imports torch.
+Duplicate names are rejected; an unknown name gets close matches suggested.
+"""
+
+from __future__ import annotations
+
+import difflib
+import importlib
+from dataclasses import dataclass, field
+from typing import Any
+
+from dyadbench.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Entry:
+    name: str
+    target: str  # "package.module:attribute"
+    summary: str
+    tags: tuple[str, ...] = ()
+
+    def load(self) -> Any:
+        module_name, _, attr = self.target.partition(":")
+        module = importlib.import_module(module_name)
+        return getattr(module, attr)
+
+
+@dataclass
+class Registry:
+    kind: str
+    entries: dict[str, Entry] = field(default_factory=dict)
+
+    def add(self, name: str, target: str, summary: str, tags: tuple[str, ...] = ()) -> None:
+        if name in self.entries:
+            raise ConfigError(f"duplicate {self.kind} name {name!r}")
+        self.entries[name] = Entry(name, target, summary, tags)
+
+    def get(self, name: str) -> Entry:
+        try:
+            return self.entries[name]
+        except KeyError:
+            close = difflib.get_close_matches(name, list(self.entries), n=3)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
+            known = ", ".join(sorted(self.entries))
+            raise ConfigError(f"unknown {self.kind} {name!r}{hint} (known: {known})") from None
+
+    def load(self, name: str) -> Any:
+        return self.get(name).load()
+
+    def names(self) -> list[str]:
+        return list(self.entries)
+
+    def __contains__(self, name: str) -> bool:
+        return name in self.entries
+
+
+MODELS = Registry("model")
+DATASETS = Registry("dataset")
+SUITES = Registry("metric suite")
+
+# --- metric suites: "module:function" scoring files on disk (see dyadbench.scoring) ---------------
+SUITES.add("dualtalk", "dyadbench.scoring.dualtalk:score_paths",
+           "DualTalk/TIMAR suite: FD, P-FD, MSE, SID, rPCC, STS, Var, Div per exp/jaw/pose")
+SUITES.add("react", "dyadbench.scoring.react:score_paths",
+           "REACT 2023/2024 suite: FRCorr, FRDist, FRDiv, FRVar, FRDvs, FRSyn")
+SUITES.add("l2l", "dyadbench.scoring.l2l:score_paths",
+           "Learning2Listen-line suite: L2, FD, P-FD, Var, SI, rPCC")
+SUITES.add("gaze", "dyadbench.scoring.gaze:score_paths",
+           "Gaze-head suite (StyGazeTalk): MAE, Vel, MEE, FixRatio, CompScore, SimWithGT, BAS")
+
+# --- datasets: factories ``open_split(root: Path | None, split: str) -> ClipSource`` -----------------
+DATASETS.add("synthetic", "dyadbench.datasets.synthetic:open_split",
+             "Embedded synthetic dyadic-conversation corpus (generated on first use, cached). Default.")
+DATASETS.add("dualtalk", "dyadbench.datasets.dualtalk:open_split",
+             "DualTalk folders train/ test/ ood/ with <clip>_speaker{1,2}.{wav,npz}")
+DATASETS.add("l2l", "dyadbench.datasets.l2l:open_split",
+             "Learning2Listen per-host train/ test/ arrays (64-frame windows, 30 fps)")
+DATASETS.add("react", "dyadbench.datasets.react:open_split",
+             "REACT 2023/2024 layout: split csv, Emotion csv, 3D_FV npy, neighbour matrix")
+DATASETS.add("gaze", "dyadbench.datasets.gaze:open_split",
+             "dyadbench gaze-head session layout (7 angles in degrees at 25 fps + 16 kHz speech)")
+DATASETS.add("synthetic-gaze", "dyadbench.datasets.gaze:open_synthetic_split",
+             "Embedded synthetic gaze-head sessions (generated on first use, cached)")
+
+# --- models: factories ``build(options: ModelOptions) -> StreamingModel | OfflineModel`` -------------
+MODELS.add("zero", "baselines.trivial:build_zero", "Zero motion (all coefficients 0)", ("baseline",))
+MODELS.add("mean-frame", "baselines.trivial:build_mean_frame", "Mean frame of the train split", ("baseline",))
+MODELS.add("median-frame", "baselines.trivial:build_median_frame", "Median frame of the train split",
+           ("baseline",))
+MODELS.add("random", "baselines.trivial:build_random",
+           "Gaussian frames with the train mean and covariance (seeded)", ("baseline",))
+MODELS.add("mime", "baselines.partner:build_mime", "Copy the partner's current motion", ("baseline",))
+MODELS.add("lagged-mirror", "baselines.partner:build_lagged_mirror",
+           "Partner's motion delayed by a fixed lag", ("baseline",))
+MODELS.add("nn-retrieval", "baselines.retrieval:build_nn_retrieval",
+           "Agent motion of the most similar train turn by partner features", ("baseline",))
+MODELS.add("oracle", "baselines.oracle:build_oracle",
+           "Ground-truth copy (ORACLE: reads the agent's ground truth; never ranked)", ("oracle",))
+MODELS.add("gaze-static", "baselines.gaze:build_static", "Gaze straight ahead, head still (gaze-head)",
+           ("baseline", "gaze"))
+MODELS.add("gaze-headcopy", "baselines.gaze:build_headcopy", "Eyes follow the head direction (gaze-head)",
+           ("baseline", "gaze"))
+MODELS.add("timar", "models.timar.registry:build_timar",
+           "TIMAR: turn-level interleaved masked autoregression with a diffusion head", ("reference",))
+MODELS.add("timar-stream", "models.timar.registry:build_timar_stream",
+           "TIMAR streaming-native variant: per-turn sliding band, exact KV cache", ("reference",))
+MODELS.add("sfms", "models.sfms.registry:build_sfms",
+           "SFMS: sparse keyframe tokenizer + listening-head predictor", ("reference",))
+MODELS.add("stygazetalk", "models.stygazetalk.registry:build_stygazetalk",
+           "StyGazeTalk: style-aware gaze-head generation from speech", ("reference", "gaze"))

@@ -1,0 +1,110 @@
+"""The result of scoring one set of predictions with one metric suite, and how it is written.
+
+Every suite's ``score_paths(...)`` returns a :class:`ScoreReport`; ``dyadbench score`` prints its table
+and writes ``results.json`` and ``per_clip.csv`` atomically. Raw values are always kept beside the
+publication-scaled ones.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import pandas as pd
+
+from dyadbench import __version__
+from dyadbench import atomic
+
+
+@dataclass
+class Column:
+    """One printed column: metric key, header, publication scale factor."""
+
+    key: str
+    header: str
+    scale: float = 1.0
+
+
+@dataclass
+class ScoreReport:
+    """Scores of one suite over one set of predictions.
+
+    - ``metrics``: raw mean over scored items, keyed by metric name.
+    - ``scaled``: the same keys times their publication scale (equal to ``metrics`` for unscaled suites).
+    - ``per_item``: one dict per scored item; first key ``clip`` (the prediction's stem / id).
+    - ``excluded``: ``{"clip": ..., "reason": ...}`` for predictions present but not scored.
+    - ``coverage``: ``{"expected": n, "scored": n, "missing": [...], "extra": [...]}`` vs ground truth.
+    """
+
+    suite: str
+    metrics: dict[str, float]
+    scaled: dict[str, float]
+    per_item: list[dict]
+    excluded: list[dict] = field(default_factory=list)
+    coverage: dict = field(default_factory=dict)
+    config: dict = field(default_factory=dict)
+    notes: list[str] = field(default_factory=list)
+    columns: list[Column] = field(default_factory=list)  # printed table order (paper order)
+    dyadbench_version: str = __version__
+
+    @property
+    def n_scored(self) -> int:
+        return len(self.per_item)
+
+    @property
+    def complete(self) -> bool:
+        """True when every expected item was scored (nothing missing, nothing excluded)."""
+        return not self.excluded and not self.coverage.get("missing")
+
+    def coverage_line(self) -> str:
+        expected = self.coverage.get("expected", self.n_scored)
+        line = f"scored {self.n_scored} of {expected}"
+        missing = self.coverage.get("missing") or []
+        if missing:
+            shown = ", ".join(missing[:5]) + (f", … ({len(missing) - 5} more)" if len(missing) > 5 else "")
+            line += f"; missing: {shown}"
+        if self.excluded:
+            line += f"; excluded {len(self.excluded)}: " + ", ".join(
+                f"{e['clip']} ({e['reason']})" for e in self.excluded[:5])
+        extra = self.coverage.get("extra") or []
+        if extra:
+            line += f"; {len(extra)} predictions without ground truth ignored"
+        return line
+
+    def table(self) -> str:
+        """Readable table of scaled values in the column order of the suite's paper."""
+        cols = self.columns or [Column(k, k) for k in self.metrics]
+        headers = [c.header for c in cols]
+        values = [_fmt(self.scaled.get(c.key, math.nan)) for c in cols]
+        widths = [max(len(h), len(v)) for h, v in zip(headers, values)]
+        head = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
+        row = "  ".join(v.rjust(w) for v, w in zip(values, widths))
+        return f"{head}\n{row}"
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d.pop("columns")
+        d["n_scored"] = self.n_scored
+        d["scaling"] = {c.key: c.scale for c in self.columns}
+        d.pop("per_item")
+        return d
+
+    def per_item_frame(self) -> pd.DataFrame:
+        return pd.DataFrame(self.per_item)
+
+    def write(self, out_dir: str | Path) -> tuple[Path, Path]:
+        """Write ``results.json`` and ``per_clip.csv`` into ``out_dir`` (atomically)."""
+        out_dir = Path(out_dir)
+        json_path = atomic.write_json(out_dir / "results.json", self.to_dict())
+        buf = io.StringIO()
+        self.per_item_frame().to_csv(buf, index=False, float_format="%.10g")
+        csv_path = atomic.write_text(out_dir / "per_clip.csv", buf.getvalue())
+        return json_path, csv_path
+
+
+def _fmt(value: float) -> str:
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "nan"
+    return f"{value:.4g}" if abs(value) < 1e4 else f"{value:.4e}"
