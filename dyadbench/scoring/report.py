@@ -12,10 +12,31 @@ import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from dyadbench import __version__
 from dyadbench import atomic
+
+
+@dataclass(frozen=True)
+class ScoreItem:
+    """One predicted agent, in memory: what every suite's ``score_arrays(items, ...)`` consumes.
+
+    ``stem`` is the prediction's name (``<clip>_<agent>``); ``pred`` and ``gt`` (T, D) are in the
+    suite's layout; ``partner`` is the partner's ground truth (None for single-participant sessions);
+    ``audio`` the agent's own speech (gaze suite: BAS); ``identity`` a speaker/style id when known.
+    Arrays of different lengths are truncated to the shortest by the suite (and counted).
+    """
+
+    stem: str
+    pred: np.ndarray
+    gt: np.ndarray
+    partner: np.ndarray | None = None
+    audio: np.ndarray | None = None
+    identity: str | None = None
+    fps: float = 25.0
+    sample_rate: int = 16_000
 
 
 @dataclass
