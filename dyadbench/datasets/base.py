@@ -103,3 +103,22 @@ class ClipSource(abc.ABC):
         """Identification recorded in results."""
         return {"dataset": self.dataset, "split": self.split, "root": str(self.root) if self.root else None,
                 "clips": len(self)}
+
+
+class InMemorySource(ClipSource):
+    """A split held in memory (tests, generated data, subsets of another source)."""
+
+    def __init__(self, clips: list[DyadicClip], dataset: str = "memory", split: str = "test"):
+        self._clips = {c.clip_id: c for c in clips}
+        if len(self._clips) != len(clips):
+            raise InputError(dataset, "duplicate clip ids")
+        self.dataset, self.split = dataset, split
+
+    def clip_ids(self) -> list[str]:
+        return sorted(self._clips)
+
+    def load(self, clip_id: str) -> DyadicClip:
+        try:
+            return self._clips[clip_id]
+        except KeyError:
+            raise InputError(f"{self.dataset}/{self.split}", f"no clip {clip_id!r}") from None
