@@ -1,0 +1,69 @@
+"""Parameters of the progressive-context streaming protocol, validated once and recorded in results.
+
+- ``turn_seconds``: length of one turn (1 s = 25 frames at 25 fps, 16,000 samples at 16 kHz); it must
+  cover a whole number of motion frames and audio samples.
+- ``context``: n, the number of history turns handed to the model with the current one (0 = none).
+- ``tail``: frames after the last whole turn: ``truncate`` (not predicted; the published TIMAR
+  numbers) or ``pad-last`` (repeat the last predicted frame; the TIMAR paper text).
+- ``history_agent``: ``masked`` (default, TIMAR's published runs: the model never sees agent motion of
+  history turns) or ``outputs`` (the model gets its own earlier outputs for the history turns).
+- ``seed``: run seed; each stream's seed is derived from (seed, clip, agent).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+from dyadbench.errors import ConfigError
+
+TAILS = ("truncate", "pad-last")
+HISTORY_AGENT = ("masked", "outputs")
+_INTEGER_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class ProtocolConfig:
+    """Validated protocol parameters (see the module docstring)."""
+
+    turn_seconds: float = 1.0
+    context: int = 7
+    tail: str = "truncate"
+    history_agent: str = "masked"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if isinstance(self.context, bool) or not isinstance(self.context, int) or self.context < 0:
+            raise ConfigError(f"context must be a whole number of history turns >= 0, got {self.context!r}")
+        try:
+            seconds = float(self.turn_seconds)
+        except (TypeError, ValueError):
+            raise ConfigError(f"turn_seconds must be a number, got {self.turn_seconds!r}") from None
+        if not seconds > 0 or seconds != seconds or seconds == float("inf"):
+            raise ConfigError(f"turn_seconds must be a positive finite number, got {self.turn_seconds!r}")
+        object.__setattr__(self, "turn_seconds", seconds)
+        if self.tail not in TAILS:
+            raise ConfigError(f"tail must be one of {', '.join(TAILS)}, got {self.tail!r}")
+        if self.history_agent not in HISTORY_AGENT:
+            raise ConfigError(f"history_agent must be one of {', '.join(HISTORY_AGENT)}, "
+                              f"got {self.history_agent!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, int):
+            raise ConfigError(f"seed must be an integer, got {self.seed!r}")
+
+    def frames_per_turn(self, fps: float) -> int:
+        """Motion frames in one turn at ``fps``; a ConfigError unless that is a whole number >= 1."""
+        return _whole(self.turn_seconds * fps, f"turn_seconds={self.turn_seconds} at {fps} fps", "frames")
+
+    def samples_per_turn(self, sample_rate: int) -> int:
+        """Audio samples in one turn at ``sample_rate``; a ConfigError unless that is a whole number >= 1."""
+        return _whole(self.turn_seconds * sample_rate,
+                      f"turn_seconds={self.turn_seconds} at {sample_rate} Hz", "samples")
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def _whole(value: float, what: str, unit: str) -> int:
+    count = round(value)
+    if abs(value - count) > _INTEGER_TOLERANCE * max(1.0, abs(value)) or count < 1:
+        raise ConfigError(f"{what} is {value:g} {unit} per turn; a turn must hold a whole number >= 1 of {unit}")
+    return int(count)

@@ -1,0 +1,135 @@
+"""The progressive-context streaming protocol: one turn at a time, inputs sliced by the protocol.
+
+For turn t of a clip (turns of ``config.turn_seconds``) the model receives, for the window of the
+h = min(t, n) previous turns plus the current one: the user's (partner's) motion and speech and the
+agent's own speech, all ground truth; optionally (``history_agent = outputs``) its own outputs for the
+h history turns; and, only for oracle models, the agent's ground-truth motion of the window. Every array
+handed over is a fresh read-only copy of exactly that window, so a model cannot reach frames after the
+current turn (a NumPy view would expose the whole clip through ``.base``). Audio shorter than the
+motion is zero-padded at the end; frames after the last whole turn are dropped (``tail = truncate``)
+or filled with the last predicted frame (``tail = pad-last``).
+
+Single-participant clips (gaze–head sessions) stream with empty user arrays: ``user_motion`` has shape
+(frames, 0) and ``user_audio`` shape (0,).
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from dyadbench.datasets.base import DyadicClip, Participant
+from dyadbench.errors import InputError
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import StreamContext, StreamingModel, TurnInput
+from dyadbench.seeding import derive_seed
+
+
+@dataclass(frozen=True)
+class StreamOutput:
+    """Agent motion for one evaluated direction of one clip.
+
+    ``motion`` (T', D) float32 with T' = num_turns · frames_per_turn (+ tail_frames with pad-last);
+    ``turn_latency_s`` the wall-clock seconds of each model call (one per turn; one per clip offline).
+    """
+
+    stem: str
+    motion: np.ndarray
+    turn_latency_s: list[float] = field(default_factory=list)
+    num_turns: int = 0
+    frames_per_turn: int = 0
+    tail_frames: int = 0
+    protocol: str = "streaming"
+
+
+def stream_context(clip: DyadicClip, agent: str, config: ProtocolConfig) -> StreamContext:
+    """The :class:`StreamContext` of one direction; the per-stream seed is derived from (seed, clip, agent)."""
+    agent_p = _participant(clip, agent)
+    partner = clip.partner_of(agent)
+    frames = config.frames_per_turn(clip.fps)
+    return StreamContext(
+        clip_id=clip.clip_id, agent=agent, user=partner.name if partner else None, fps=clip.fps,
+        sample_rate=clip.sample_rate, frames_per_turn=frames,
+        samples_per_turn=config.samples_per_turn(clip.sample_rate), context_turns=config.context,
+        num_turns=clip.num_frames // frames, seed=derive_seed(config.seed, clip.clip_id, agent),
+        agent_identity=agent_p.identity)
+
+
+def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig) -> StreamOutput:
+    """Run ``model`` over one direction of ``clip`` (``agent`` generated, its partner the user)."""
+    ctx = stream_context(clip, agent, config)
+    stem = f"{clip.clip_id}_{agent}"
+    if ctx.num_turns == 0:
+        raise InputError(stem, f"clip has {clip.num_frames} frames, shorter than one turn "
+                               f"({ctx.frames_per_turn} frames); nothing to stream")
+    agent_p = clip.participant(agent)
+    partner = clip.partner_of(agent)
+    user_motion = partner.motion if partner else np.zeros((clip.num_frames, 0), np.float32)
+    oracle = bool(getattr(model.info, "oracle", False))
+    F, S, dim = ctx.frames_per_turn, ctx.samples_per_turn, clip.motion_layout.dim
+
+    model.start_stream(ctx)
+    outputs: list[np.ndarray] = []
+    latencies: list[float] = []
+    for t in range(ctx.num_turns):
+        h = min(t, config.context)
+        f0, f1 = (t - h) * F, (t + 1) * F
+        s0, s1 = (t - h) * S, (t + 1) * S
+        turn = TurnInput(
+            turn=t, history_turns=h, frames_per_turn=F, samples_per_turn=S,
+            user_motion=readonly_window(user_motion, f0, f1),
+            user_audio=readonly_window(partner.audio, s0, s1) if partner else np.zeros(0, np.float32),
+            agent_audio=readonly_window(agent_p.audio, s0, s1),
+            agent_history=(make_readonly(np.concatenate(outputs[t - h:t], axis=0) if h else
+                                     np.zeros((0, dim), np.float32))
+                           if config.history_agent == "outputs" else None),
+            agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if oracle else None,
+        )
+        start = time.perf_counter()
+        out = model.predict_turn(turn)
+        latencies.append(time.perf_counter() - start)
+        outputs.append(check_output(out, (F, dim), f"{model.info.name} on {stem}, turn {t}"))
+
+    motion = np.concatenate(outputs, axis=0)
+    tail = clip.num_frames - motion.shape[0] if config.tail == "pad-last" else 0
+    if tail:
+        motion = np.concatenate([motion, np.repeat(motion[-1:], tail, axis=0)], axis=0)
+    return StreamOutput(stem=stem, motion=motion, turn_latency_s=latencies, num_turns=ctx.num_turns,
+                        frames_per_turn=F, tail_frames=tail)
+
+
+def check_output(out: object, shape: tuple[int, int], source: str) -> np.ndarray:
+    """A model's output as float32 of exactly ``shape`` with finite values, else an InputError."""
+    arr = np.asarray(out)
+    if arr.shape != shape:
+        raise InputError(source, f"model returned shape {arr.shape}, expected {shape}")
+    if not np.issubdtype(arr.dtype, np.number):
+        raise InputError(source, f"model returned non-numeric dtype {arr.dtype}")
+    arr = arr.astype(np.float32)
+    if not np.isfinite(arr).all():
+        raise InputError(source, "model returned non-finite values (NaN or inf)")
+    return arr
+
+
+def _participant(clip: DyadicClip, name: str) -> Participant:
+    try:
+        return clip.participant(name)
+    except KeyError:
+        names = ", ".join(p.name for p in clip.participants)
+        raise InputError(clip.clip_id, f"no participant {name!r} (has {names})") from None
+
+
+def readonly_window(array: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """A read-only float32 copy of rows [start, stop), zero-padded past the end of ``array``."""
+    part = np.array(array[start:stop], dtype=np.float32)
+    missing = (stop - start) - part.shape[0]
+    if missing > 0:
+        part = np.concatenate([part, np.zeros((missing,) + part.shape[1:], np.float32)], axis=0)
+    return make_readonly(part)
+
+
+def make_readonly(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
