@@ -1,0 +1,396 @@
+"""The dyadbench gaze–head session layout, its adapter, validator and the embedded synthetic sessions.
+
+On-disk layout (one speaker per session; HAGE-style recordings, or the synthetic generator's output)::
+
+    <root>/
+      splits.csv              # index: session,speaker,split  (one row per session)
+      <split>/                # train, val, test, ood, ...
+        <session>.npz         # motion (T, 7) float, degrees, 25 fps, order
+                              #   [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch, R_yaw]
+                              #   (yaw + = the subject's left, pitch + = up; eyes are eye-in-head);
+                              # fps () float = 25; speaker () str;
+                              # optional: speaking (T,) bool, valid (T,) bool (False = tracker loss)
+        <session>.wav         # 16 kHz mono speech (PCM 16/32-bit or float), T/25 s long (± 1 frame)
+
+Reading a session (:func:`open_split`):
+
+- Frames with any |angle| > ``angle_limit_deg`` (40°, HAGE's filter) or ``valid`` False are dropped;
+  the session is cut at those frames into contiguous segments (never joined across a gap) and
+  segments shorter than ``min_segment_frames`` (75 = 3 s) are discarded. A session with no dropped
+  frame is one clip named ``<session>``; otherwise each kept segment is a clip ``<session>-f<first frame>``.
+  Dropped frame counts are reported by :meth:`GazeSource.describe`.
+- Each clip has one participant named ``subject`` whose ``identity`` is the speaker id, layout
+  ``gaze7``; ``meta["speaking"]["subject"]`` is the speaking mask when the file has one.
+- Audio is trimmed to T·640 samples (zero-padded when at most one frame short).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.io import wavfile
+
+from dyadbench import atomic
+from dyadbench.arrays import check_motion, load_npz
+from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.motion import FPS, GAZE7, SAMPLE_RATE
+from dyadbench.paths import cache_dir
+
+INDEX = "splits.csv"
+INDEX_COLUMNS = ("session", "speaker", "split")
+PARTICIPANT = "subject"
+ANGLE_LIMIT_DEG = 40.0
+MIN_SEGMENT_FRAMES = 75
+SYNTHETIC_VERSION = 1
+SYNTHETIC_SEED = 0
+
+
+# --- files ---------------------------------------------------------------------------------------------
+
+def write_wav(path: Path, audio: np.ndarray, sample_rate: int = SAMPLE_RATE) -> Path:
+    """16-bit PCM mono wav, written atomically (values clipped to [-1, 1])."""
+    pcm = (np.clip(np.asarray(audio, dtype=np.float64), -1.0, 1.0) * 32767.0).round().astype(np.int16)
+    buf = io.BytesIO()
+    wavfile.write(buf, sample_rate, pcm)
+    return atomic.write_bytes(path, buf.getvalue())
+
+
+def read_wav(path: Path) -> tuple[np.ndarray, int]:
+    """Mono float32 audio in [-1, 1] and its sample rate; InputError naming the file otherwise."""
+    if not path.is_file():
+        raise InputError(path, "file not found")
+    try:
+        rate, data = wavfile.read(path)
+    except (ValueError, OSError, EOFError) as exc:
+        raise InputError(path, f"unreadable wav ({exc})") from None
+    if data.ndim != 1:
+        raise InputError(path, f"expected mono audio, got {data.shape[1]} channels")
+    if data.dtype == np.int16:
+        audio = data / 32768.0
+    elif data.dtype == np.int32:
+        audio = data / 2147483648.0
+    elif data.dtype.kind == "f":
+        audio = data
+    else:
+        raise InputError(path, f"unsupported wav sample type {data.dtype}")
+    return audio.astype(np.float32), int(rate)
+
+
+def write_session(split_dir: Path, clip: DyadicClip) -> Path:
+    """Write a single-participant gaze7 clip as ``<split_dir>/<clip_id>.npz`` + ``.wav`` (atomically)."""
+    if clip.layout != GAZE7.name or len(clip.participants) != 1:
+        raise InputError(clip.clip_id, "the gaze-head layout stores single-participant gaze7 clips")
+    p = clip.participants[0]
+    extra = {}
+    speaking = clip.meta.get("speaking", {}).get(p.name)
+    if speaking is not None:
+        extra["speaking"] = np.asarray(speaking, dtype=bool)
+    npz = atomic.save_npz(Path(split_dir) / f"{clip.clip_id}.npz", motion=np.asarray(p.motion, np.float32),
+                          fps=np.float64(clip.fps), speaker=np.str_(p.identity or ""), **extra)
+    write_wav(Path(split_dir) / f"{clip.clip_id}.wav", p.audio, clip.sample_rate)
+    return npz
+
+
+def read_index(root: Path) -> list[dict]:
+    """Rows of ``<root>/splits.csv`` (session, speaker, split); InputError naming the file when malformed."""
+    path = Path(root) / INDEX
+    if not path.is_file():
+        raise InputError(path, "index not found: a gaze-head root holds splits.csv (session,speaker,split)")
+    with open(path, newline="", encoding="utf-8") as f:
+        reader = csv.DictReader(f)
+        if tuple(reader.fieldnames or ())[:3] != INDEX_COLUMNS:
+            raise InputError(path, f"header must start with {','.join(INDEX_COLUMNS)}, got {reader.fieldnames}")
+        rows = list(reader)
+    for i, row in enumerate(rows, start=2):
+        if not all(row.get(c) for c in INDEX_COLUMNS):
+            raise InputError(f"{path}:{i}", f"empty field in row {row}")
+    sessions = [r["session"] for r in rows]
+    if len(set(sessions)) != len(sessions):
+        raise InputError(path, "a session is listed twice")
+    return rows
+
+
+def update_index(root: Path, split: str, sessions: list[tuple[str, str]]) -> Path:
+    """Replace ``split``'s rows of ``<root>/splits.csv`` with ``sessions`` [(session, speaker)]; keep the rest."""
+    root = Path(root)
+    rows = [r for r in read_index(root) if r["split"] != split] if (root / INDEX).is_file() else []
+    rows += [{"session": s, "speaker": spk, "split": split} for s, spk in sessions]
+    rows.sort(key=lambda r: (r["split"], r["session"]))
+    buf = io.StringIO()
+    writer = csv.DictWriter(buf, fieldnames=INDEX_COLUMNS, lineterminator="\n")
+    writer.writeheader()
+    writer.writerows(rows)
+    return atomic.write_text(root / INDEX, buf.getvalue())
+
+
+@dataclass(frozen=True)
+class SessionFile:
+    """One session as stored: motion (T, 7) degrees, speaker, optional masks, audio."""
+
+    session: str
+    motion: np.ndarray
+    speaker: str
+    fps: float
+    speaking: np.ndarray | None
+    valid: np.ndarray | None
+
+
+def read_session(npz_path: Path) -> SessionFile:
+    """Read and check ``<session>.npz``; every problem is an InputError naming the file and key."""
+    arrays = load_npz(npz_path)
+    for key in ("motion", "fps", "speaker"):
+        if key not in arrays:
+            raise InputError(npz_path, f"missing key {key!r} (has: {', '.join(arrays)}); "
+                                       f"a session needs motion (T,7) degrees, fps, speaker")
+    motion = check_motion(arrays["motion"], f"{npz_path}[motion]", GAZE7.dim, finite=False)
+    fps = arrays["fps"]
+    if fps.shape != () or fps.dtype.kind not in "fiu" or float(fps) != FPS:
+        raise InputError(f"{npz_path}[fps]", f"must be the scalar {FPS:g} (frames per second), got {fps!r}")
+    speaker = arrays["speaker"]
+    if speaker.shape != () or speaker.dtype.kind != "U" or not str(speaker):
+        raise InputError(f"{npz_path}[speaker]", f"must be a non-empty string scalar, got {speaker!r}")
+    masks = {}
+    for key in ("speaking", "valid"):
+        if key in arrays:
+            m = arrays[key]
+            if m.dtype != bool or m.shape != (len(motion),):
+                raise InputError(f"{npz_path}[{key}]", f"must be bool ({len(motion)},), got {m.dtype} {m.shape}")
+            masks[key] = m
+    return SessionFile(npz_path.stem, motion, str(speaker), float(fps), masks.get("speaking"), masks.get("valid"))
+
+
+def keep_mask(session: SessionFile, angle_limit_deg: float = ANGLE_LIMIT_DEG) -> np.ndarray:
+    """Frames kept: finite, every |angle| <= ``angle_limit_deg``, and ``valid`` where given."""
+    finite = np.isfinite(session.motion).all(axis=1)
+    keep = finite & (np.abs(np.where(np.isfinite(session.motion), session.motion, 0.0)) <= angle_limit_deg).all(axis=1)
+    return keep & session.valid if session.valid is not None else keep
+
+
+def segments(keep: np.ndarray, min_frames: int = MIN_SEGMENT_FRAMES) -> list[tuple[int, int]]:
+    """[start, end) runs of kept frames with at least ``min_frames`` frames."""
+    edges = np.diff(np.concatenate([[0], keep.astype(np.int8), [0]]))
+    runs = zip(np.flatnonzero(edges == 1).tolist(), np.flatnonzero(edges == -1).tolist())
+    return [(a, b) for a, b in runs if b - a >= min_frames]
+
+
+def fit_audio(audio: np.ndarray, frames: int, wav_path: Path, sample_rate: int = SAMPLE_RATE) -> np.ndarray:
+    """Audio cut to ``frames`` motion frames; zero-padded when at most one frame short."""
+    hop = int(round(sample_rate / FPS))
+    need = frames * hop
+    if len(audio) < need - hop:
+        raise InputError(wav_path, f"audio is {len(audio) / sample_rate:.3f} s but the motion is "
+                                   f"{frames / FPS:.3f} s ({frames} frames); they must match within one frame")
+    return np.pad(audio, (0, max(0, need - len(audio))))[:need]
+
+
+# --- adapter -------------------------------------------------------------------------------------------
+
+def resolve_root(path: Path, split: str | None) -> tuple[Path, str]:
+    """(root, split) from a corpus root (holding splits.csv) or a split folder inside one."""
+    path = Path(path)
+    if (path / INDEX).is_file():
+        return path, split or "test"
+    if (path.parent / INDEX).is_file() and path.is_dir():
+        if split not in (None, path.name):
+            raise ConfigError(f"{path} is the {path.name!r} split folder but split {split!r} was asked for")
+        return path.parent, path.name
+    raise InputError(path, f"not a gaze-head root: no {INDEX} here or in the parent folder")
+
+
+class GazeSource(ClipSource):
+    """One split of a gaze–head root, read lazily (see the module docstring for the layout and rules)."""
+
+    dataset = "gaze"
+
+    def __init__(self, root: Path, split: str, *, angle_limit_deg: float = ANGLE_LIMIT_DEG,
+                 min_segment_frames: int = MIN_SEGMENT_FRAMES):
+        self.root, self.split = Path(root), split
+        self.angle_limit_deg, self.min_segment_frames = angle_limit_deg, min_segment_frames
+        rows = [r for r in read_index(self.root) if r["split"] == split]
+        if not rows:
+            known = sorted({r["split"] for r in read_index(self.root)})
+            raise InputError(self.root / INDEX, f"no session in split {split!r} (splits: {', '.join(known)})")
+        self._speakers = {r["session"]: r["speaker"] for r in rows}
+        self._clips: dict[str, tuple[str, int, int]] | None = None
+        self._sessions: dict[str, SessionFile] = {}
+        self.dropped_frames = 0
+        self.discarded_segments = 0
+
+    def _npz(self, session: str) -> Path:
+        return self.root / self.split / f"{session}.npz"
+
+    def _session(self, session: str) -> SessionFile:
+        if session not in self._sessions:
+            data = read_session(self._npz(session))
+            if data.speaker != self._speakers[session]:
+                raise InputError(self._npz(session), f"speaker {data.speaker!r} differs from {INDEX}'s "
+                                                     f"{self._speakers[session]!r}")
+            self._sessions[session] = data
+        return self._sessions[session]
+
+    def _segment_all(self) -> dict[str, tuple[str, int, int]]:
+        if self._clips is None:
+            clips = {}
+            for session in sorted(self._speakers):
+                data = self._session(session)
+                keep = keep_mask(data, self.angle_limit_deg)
+                kept = segments(keep, self.min_segment_frames)
+                self.dropped_frames += int(len(keep) - keep.sum())
+                self.discarded_segments += len(segments(keep, 1)) - len(kept)
+                if kept == [(0, len(keep))]:
+                    clips[session] = (session, 0, len(keep))
+                else:
+                    clips.update({f"{session}-f{a:06d}": (session, a, b) for a, b in kept})
+            self._clips = clips
+        return self._clips
+
+    def clip_ids(self) -> list[str]:
+        return sorted(self._segment_all())
+
+    def load(self, clip_id: str) -> DyadicClip:
+        try:
+            session, a, b = self._segment_all()[clip_id]
+        except KeyError:
+            raise InputError(f"{self.root}/{self.split}", f"no clip {clip_id!r}") from None
+        data = self._session(session)
+        wav_path = self.root / self.split / f"{session}.wav"
+        audio, rate = read_wav(wav_path)
+        if rate != SAMPLE_RATE:
+            raise InputError(wav_path, f"sample rate {rate} Hz, expected {SAMPLE_RATE}")
+        hop = int(round(SAMPLE_RATE / FPS))
+        audio = fit_audio(audio, len(data.motion), wav_path)[a * hop:b * hop]
+        meta = {"session": session, "speaker": data.speaker, "first_frame": a}
+        if data.speaking is not None:
+            meta["speaking"] = {PARTICIPANT: data.speaking[a:b]}
+        motion = data.motion[a:b].astype(np.float32)
+        return DyadicClip(clip_id, (Participant(PARTICIPANT, motion, audio, identity=data.speaker),),
+                          fps=FPS, sample_rate=SAMPLE_RATE, layout=GAZE7.name, meta=meta)
+
+    def describe(self) -> dict:
+        info = super().describe()
+        info.update(sessions=len(self._speakers), dropped_frames=self.dropped_frames,
+                    discarded_segments=self.discarded_segments, angle_limit_deg=self.angle_limit_deg,
+                    min_segment_frames=self.min_segment_frames)
+        return info
+
+
+def open_split(root: Path | None, split: str) -> GazeSource:
+    """The ``split`` of a gaze–head root (or of the split folder ``root``)."""
+    if root is None:
+        raise ConfigError("the gaze dataset reads a folder: pass its root (the folder holding splits.csv); "
+                          "the embedded synthetic sessions are the 'synthetic-gaze' dataset")
+    root, split = resolve_root(Path(root), split)
+    return GazeSource(root, split)
+
+
+def synthetic_root() -> Path:
+    return cache_dir() / f"synthetic-gaze-v{SYNTHETIC_VERSION}-seed{SYNTHETIC_SEED}"
+
+
+def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
+    """The embedded synthetic gaze–head sessions: generated on first use into ``root`` (default: the cache)."""
+    from dyadbench.synth.gaze import SPLITS, write_gaze_split
+
+    if split not in SPLITS:
+        raise ConfigError(f"unknown synthetic gaze split {split!r} (known: {', '.join(SPLITS)})")
+    root = synthetic_root() if root is None else Path(root)
+    marker = root / split / ".complete.json"
+    if not marker.is_file():
+        summary = write_gaze_split(root, split=split, seed=SYNTHETIC_SEED)
+        atomic.write_json(marker, summary)
+    source = GazeSource(root, split)
+    source.dataset = "synthetic-gaze"
+    return source
+
+
+# --- validation and description ------------------------------------------------------------------------
+
+@dataclass
+class GazeValidation:
+    """Outcome of :func:`validate_folder`: ``ok`` when no error; every message names its file."""
+
+    folder: str
+    errors: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    checked: int = 0
+
+    @property
+    def ok(self) -> bool:
+        return not self.errors
+
+    def summary(self) -> str:
+        head = f"{self.folder}: {self.checked} sessions checked, {len(self.errors)} errors, {len(self.warnings)} warnings"
+        return "\n".join([head] + [f"error: {e}" for e in self.errors] + [f"warning: {w}" for w in self.warnings])
+
+
+def validate_folder(folder: Path) -> GazeValidation:
+    """Check a gaze–head root (or split folder): index, every session's npz and wav, lengths, ranges."""
+    folder = Path(folder)
+    report = GazeValidation(str(folder))
+    try:
+        root, only_split = resolve_root(folder, None)
+        rows = read_index(root)
+    except (InputError, ConfigError) as exc:
+        report.errors.append(str(exc))
+        return report
+    if (folder / INDEX).is_file():
+        only_split = None
+    listed = set()
+    for row in rows:
+        if only_split and row["split"] != only_split:
+            continue
+        npz = root / row["split"] / f"{row['session']}.npz"
+        listed.add(npz)
+        report.checked += 1
+        try:
+            data = read_session(npz)
+            if data.speaker != row["speaker"]:
+                raise InputError(npz, f"speaker {data.speaker!r} differs from {INDEX}'s {row['speaker']!r}")
+            wav = npz.with_suffix(".wav")
+            audio, rate = read_wav(wav)
+            if rate != SAMPLE_RATE:
+                raise InputError(wav, f"sample rate {rate} Hz, expected {SAMPLE_RATE}")
+            fit_audio(audio, len(data.motion), wav)
+            keep = keep_mask(data)
+            if not keep.all():
+                report.warnings.append(f"{npz}: {int((~keep).sum())} of {len(keep)} frames will be dropped "
+                                       f"(|angle| > {ANGLE_LIMIT_DEG:g}°, NaN or valid=False)")
+            if not segments(keep):
+                report.errors.append(f"{npz}: no run of {MIN_SEGMENT_FRAMES} usable frames")
+        except InputError as exc:
+            report.errors.append(str(exc))
+    splits = {only_split} if only_split else {r["split"] for r in rows}
+    for split in sorted(splits):
+        for npz in sorted((root / split).glob("*.npz")):
+            if npz not in listed:
+                report.warnings.append(f"{npz}: not listed in {root / INDEX}; it is ignored")
+    return report
+
+
+def folder_info(folder: Path) -> dict:
+    """Per-split sessions, speakers, frames, hours and the angle ranges of a gaze–head root."""
+    root, only_split = resolve_root(Path(folder), None)
+    if (Path(folder) / INDEX).is_file():
+        only_split = None
+    info: dict = {"root": str(root), "layout": "gaze", "fps": FPS, "sample_rate": SAMPLE_RATE, "splits": {}}
+    for row in read_index(root):
+        if only_split and row["split"] != only_split:
+            continue
+        data = read_session(root / row["split"] / f"{row['session']}.npz")
+        s = info["splits"].setdefault(row["split"], {"sessions": 0, "speakers": set(), "frames": 0,
+                                                     "dropped_frames": 0, "abs_max_deg": 0.0})
+        s["sessions"] += 1
+        s["speakers"].add(row["speaker"])
+        s["frames"] += len(data.motion)
+        s["dropped_frames"] += int((~keep_mask(data)).sum())
+        finite = data.motion[np.isfinite(data.motion).all(axis=1)]
+        s["abs_max_deg"] = max(s["abs_max_deg"], float(np.abs(finite).max()) if len(finite) else 0.0)
+    for s in info["splits"].values():
+        s["speakers"] = sorted(s["speakers"])
+        s["hours"] = s["frames"] / FPS / 3600.0
+    return info

@@ -1,0 +1,272 @@
+"""The gaze–head suite (StyGazeTalk, Tables 2–3): score predicted 7-angle tracks against ground truth.
+
+Per prediction (the first ``skip_frames`` frames, the models' seed window, are excluded for every
+model): MAE, Vel, Vel_abs, MEE, MEE_frame for all / gaze / head; per-sequence FixRatio, CompScore
+and SimWithGT; BAS against the session's own speech onsets in both directions, for all / gaze / head.
+Over the split: error metrics are the mean over sequences; FixRatio pools frame counts and CompScore
+pools velocity frames over all sequences, for the predictions and the ground truth; ``sim_gt`` is
+computed once from those aggregates (the paper's SimScore) and ``sim_gt_seq`` is the mean of the
+per-sequence values. BAS is also computed against a fixed derangement of the sequences' speech
+(``*_shuffled``, seeded by ``seed``) and reported as the difference (``*_delta``); the ground truth's
+own BAS is reported beside it (``gt_bas_*``). Sequences whose BAS is undefined (no beats) are left out
+of its mean and counted in the notes.
+
+The style cosine error needs a frozen style encoder (:class:`dyadbench.metrics.gaze.StyleEncoder`):
+pass it as ``style_encoder``; without one ``style_ce`` is not reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from dyadbench.datasets.gaze import open_split
+from dyadbench.errors import InputError
+from dyadbench.metrics import beats, gaze
+from dyadbench.metrics.fixations import fixation_counts
+from dyadbench.motion import FPS, GAZE7
+from dyadbench.scoring.parallel import map_items
+from dyadbench.scoring.predictions import open_predictions
+from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
+from dyadbench.seeding import rng
+
+SUITE = "gaze"
+SEED_FRAMES = 50  # M = 2 s: StyGazeTalk's seed window, excluded for every model
+ERROR_METRICS = {"mae": gaze.mae, "vel": gaze.vel, "vel_abs": gaze.vel_abs, "mee": gaze.mee,
+                 "mee_frame": gaze.mee_frame}
+BAS_GROUPS = ("all", "gaze", "head")
+
+
+@dataclass(frozen=True)
+class GazeSuiteConfig:
+    """Every decision of the suite, recorded in results (defaults reproduce the paper's reading)."""
+
+    skip_frames: int = SEED_FRAMES
+    idt_threshold_deg: float = 3.5
+    idt_min_frames: int = 3
+    idt_eyes: str = "pooled"  # or "cyclopean"
+    idt_include_breaking_sample: bool = False  # True: pymovements' variant
+    comp_velocity_unit: str = "deg_per_frame"  # or "deg_per_s"
+    bas_order_s: float = beats.ORDER_S
+    bas_sigma_s: float = beats.SIGMA_S
+    bas_min_speed: float = 0.0
+
+    def idt(self) -> dict:
+        return {"threshold_deg": self.idt_threshold_deg, "min_frames": self.idt_min_frames,
+                "eyes": self.idt_eyes, "include_breaking_sample": self.idt_include_breaking_sample}
+
+
+COLUMNS = [
+    Column("mae_all", "All MAE"), Column("vel_all", "All Vel"), Column("mee_all", "All MEE"),
+    Column("style_ce", "CE"), Column("bas_all", "All BAS"),
+    Column("mae_gaze", "Gaze MAE"), Column("vel_gaze", "Gaze Vel"), Column("mee_gaze", "Gaze MEE"),
+    Column("bas_gaze", "Gaze BAS"),
+    Column("mae_head", "Head MAE"), Column("vel_head", "Head Vel"), Column("mee_head", "Head MEE"),
+    Column("bas_head", "Head BAS"), Column("bas_delta_head", "Head dBAS"),
+    Column("saccade_ratio", "saccade %", 100.0), Column("fix_ratio", "fixation %", 100.0),
+    Column("comp_score", "CompScore"), Column("sim_gt", "SimScore"), Column("sim_gt_seq", "Sim_seq"),
+]
+NOT_METRICS = {"clip", "frames", "truncated", "speech_onsets"}
+PERCENT_KEYS = {"fix_ratio", "saccade_ratio", "gt_fix_ratio", "gt_saccade_ratio"}
+
+
+@dataclass(frozen=True)
+class _Task:
+    item: ScoreItem
+    config: GazeSuiteConfig
+
+
+def _prepare(item: ScoreItem, skip: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, int]:
+    """Checked pred/gt cut to a common length with the seed frames removed; audio cut alike."""
+    if item.fps != FPS:
+        raise InputError(item.stem, f"the gaze suite scores {FPS:g}-fps motion, got {item.fps:g} fps")
+    pred = np.asarray(item.pred, dtype=np.float64)
+    gt = gaze.check_motion(item.gt, f"{item.stem} (ground truth)")
+    if pred.ndim != 2 or pred.shape[1] != GAZE7.dim:
+        raise InputError(item.stem, f"prediction must be (T, 7) degrees, got shape {pred.shape}")
+    if not np.isfinite(pred).all():
+        raise InputError(item.stem, "prediction contains NaN or inf")
+    n = min(len(pred), len(gt))
+    if n - skip < 3:
+        raise InputError(item.stem, f"{n} frames in common; at least {skip + 3} are needed "
+                                    f"({skip} seed frames are excluded)")
+    audio = None
+    if item.audio is not None:
+        hop = int(round(item.sample_rate / item.fps))
+        audio = np.pad(np.asarray(item.audio, dtype=np.float32), (0, max(0, n * hop - len(item.audio))))[:n * hop]
+    return pred[skip:n], gt[skip:n], audio, n
+
+
+def _score_item(task: _Task) -> dict:
+    item, cfg = task.item, task.config
+    try:
+        pred, gt, audio, n_common = _prepare(item, cfg.skip_frames)
+    except InputError as exc:
+        return {"clip": item.stem, "excluded": exc.problem}
+    row: dict = {"clip": item.stem, "frames": len(pred),
+                 "truncated": int(max(len(item.pred), len(item.gt)) - n_common)}
+    for group in gaze.GROUPS:
+        for name, fn in ERROR_METRICS.items():
+            row[f"{name}_{group}"] = fn(pred, gt, group)
+    counts = {}
+    for who, motion in (("pred", pred), ("gt", gt)):
+        labels = gaze.fixation_labels(motion, name=f"{item.stem} ({who})", **cfg.idt())
+        counts[f"{who}_fix"], counts[f"{who}_sac"] = fixation_counts(labels)
+        comp = gaze.compensation_frames(motion, velocity_unit=cfg.comp_velocity_unit, fps=item.fps)
+        counts[f"{who}_comp_sum"], counts[f"{who}_comp_n"] = float(comp.sum()), len(comp)
+    fix = counts["pred_fix"] / max(1, counts["pred_fix"] + counts["pred_sac"])
+    gt_fix = counts["gt_fix"] / max(1, counts["gt_fix"] + counts["gt_sac"])
+    comp_p = counts["pred_comp_sum"] / counts["pred_comp_n"]
+    comp_g = counts["gt_comp_sum"] / counts["gt_comp_n"]
+    row.update(fix_ratio=fix, comp_score=comp_p, gt_fix_ratio=gt_fix, gt_comp_score=comp_g,
+               sim_gt=gaze.sim_with_gt(gt_fix, comp_g, fix, comp_p))
+    beat_sets = {}
+    if audio is not None:
+        onsets = beats.speech_onsets(audio, item.sample_rate, item.fps)
+        beat_sets["onsets"] = onsets[onsets >= cfg.skip_frames / item.fps] - cfg.skip_frames / item.fps
+        for group in BAS_GROUPS:
+            for who, motion in (("pred", pred), ("gt", gt)):
+                beat_sets[f"{who}_{group}"] = beats.motion_beats(motion, group, fps=item.fps, order_s=cfg.bas_order_s,
+                                                                 min_speed=cfg.bas_min_speed)
+    return {"row": row, "counts": counts, "beats": beat_sets}
+
+
+def derangement(n: int, seed: int) -> np.ndarray | None:
+    """A seeded permutation of range(n) without fixed points (None when n < 2)."""
+    if n < 2:
+        return None
+    r = rng(seed, "gaze-bas-derangement", n)
+    while True:
+        perm = r.permutation(n)
+        if not np.any(perm == np.arange(n)):
+            return perm
+
+
+def _add_bas(results: list[dict], cfg: GazeSuiteConfig, seed: int, notes: list[str]) -> None:
+    """BAS per item (matched, shuffled, delta; m2a and a2m; prediction and GT), in place."""
+    with_audio = [r for r in results if r["beats"]]
+    if len(with_audio) < len(results):
+        notes.append(f"BAS: {len(results) - len(with_audio)} predictions have no speech; BAS not computed for them")
+    perm = derangement(len(with_audio), seed)
+    if with_audio and perm is None:
+        notes.append("BAS: shuffled-speech reference needs at least 2 sequences; bas_shuffled/bas_delta are NaN")
+    empty: dict[str, int] = {}
+    for i, res in enumerate(with_audio):
+        b, row = res["beats"], res["row"]
+        other = with_audio[perm[i]]["beats"]["onsets"] if perm is not None else None
+        for group in BAS_GROUPS:
+            for who, prefix in (("pred", ""), ("gt", "gt_")):
+                mb = b[f"{who}_{group}"]
+                reason = beats.empty_reason(len(mb), len(b["onsets"]))
+                if reason and who == "pred":
+                    key = f"{group}: {reason}"
+                    empty[key] = empty.get(key, 0) + 1
+                for direction, tag in (("m2a", ""), ("a2m", "_a2m")):
+                    kw = {"sigma_s": cfg.bas_sigma_s, "direction": direction}
+                    matched = beats.beat_alignment(mb, b["onsets"], **kw)
+                    shuffled = beats.beat_alignment(mb, other, **kw) if other is not None else float("nan")
+                    row[f"{prefix}bas{tag}_{group}"] = matched
+                    row[f"{prefix}bas{tag}_shuffled_{group}"] = shuffled
+                    row[f"{prefix}bas{tag}_delta_{group}"] = matched - shuffled
+            row[f"motion_beats_{group}"] = len(b[f"pred_{group}"])
+        row["speech_onsets"] = len(b["onsets"])
+    for key, count in sorted(empty.items()):
+        notes.append(f"BAS {key}: NaN for {count} of {len(with_audio)} sequences (left out of the mean)")
+
+
+def _add_style(results: list[dict], items: dict[str, ScoreItem], cfg: GazeSuiteConfig, encoder) -> None:
+    for res in results:
+        item = items[res["row"]["clip"]]
+        n = min(len(item.pred), len(item.gt))
+        gt_w = gaze.sliding_windows(np.asarray(item.gt[cfg.skip_frames:n], np.float64), encoder.window, encoder.hop)
+        pred_w = gaze.sliding_windows(np.asarray(item.pred[cfg.skip_frames:n], np.float64), encoder.window,
+                                      encoder.hop)
+        res["row"]["style_ce"] = (gaze.style_cosine_error(encoder(gt_w), encoder(pred_w)) if len(gt_w)
+                                  else float("nan"))
+
+
+def _nanmean(values: list[float]) -> float:
+    arr = np.asarray(values, dtype=np.float64)
+    arr = arr[np.isfinite(arr)]
+    return float(arr.mean()) if arr.size else float("nan")
+
+
+def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config: GazeSuiteConfig | None = None,
+                 style_encoder: gaze.StyleEncoder | None = None) -> ScoreReport:
+    """Score in-memory predictions with the gaze–head suite (see the module docstring).
+
+    ``style_encoder``: a frozen :class:`~dyadbench.metrics.gaze.StyleEncoder` for ``style_ce``
+    (its ``digest`` is recorded); None leaves ``style_ce`` out. ``seed`` fixes the shuffled-speech
+    derangement of the BAS reference.
+    """
+    cfg = config or GazeSuiteConfig()
+    stems = [it.stem for it in items]
+    if len(set(stems)) != len(stems):
+        raise InputError("predictions", "two items share a stem")
+    outputs = list(map_items(_score_item, [_Task(it, cfg) for it in items], jobs=jobs, desc="gaze suite"))
+    excluded = [{"clip": o["clip"], "reason": o["excluded"]} for o in outputs if "excluded" in o]
+    results = [o for o in outputs if "excluded" not in o]
+    notes: list[str] = []
+    _add_bas(results, cfg, seed, notes)
+    if style_encoder is not None:
+        _add_style(results, {it.stem: it for it in items}, cfg, style_encoder)
+    else:
+        notes.append("style_ce not computed: it needs a frozen style encoder (score_arrays(..., style_encoder=...))")
+    truncated = sum(1 for r in results if r["row"]["truncated"])
+    if truncated:
+        notes.append(f"{truncated} predictions differ in length from their ground truth; scored on the common frames")
+    per_item = [r["row"] for r in results]
+    for row in per_item:
+        row["sim_gt_seq"] = row.pop("sim_gt")
+    keys = dict.fromkeys(k for row in per_item for k in row
+                         if k not in NOT_METRICS and not k.startswith("motion_beats_"))
+    metrics = {k: _nanmean([row.get(k, float("nan")) for row in per_item]) for k in keys}
+    if results:
+        total = {k: sum(r["counts"][k] for r in results) for k in results[0]["counts"]}
+        fix = total["pred_fix"] / max(1, total["pred_fix"] + total["pred_sac"])
+        gt_fix = total["gt_fix"] / max(1, total["gt_fix"] + total["gt_sac"])
+        comp = total["pred_comp_sum"] / total["pred_comp_n"]
+        gt_comp = total["gt_comp_sum"] / total["gt_comp_n"]
+        metrics.update(fix_ratio=fix, saccade_ratio=1.0 - fix, comp_score=comp, gt_fix_ratio=gt_fix,
+                       gt_saccade_ratio=1.0 - gt_fix, gt_comp_score=gt_comp,
+                       sim_gt=gaze.sim_with_gt(gt_fix, gt_comp, fix, comp))
+    scaled = {k: v * (100.0 if k in PERCENT_KEYS else 1.0) for k, v in metrics.items()}
+    config_dict = {**asdict(cfg), "seed": seed, "fps": FPS, "velocity": "first difference, deg/frame",
+                   "aggregation": "error metrics: mean over sequences; fix_ratio/comp_score: pooled frames; "
+                                  "sim_gt: from split-level aggregates",
+                   "style_encoder": getattr(style_encoder, "digest", None)}
+    columns = [c for c in COLUMNS if c.key in metrics]
+    return ScoreReport(suite=SUITE, metrics=metrics, scaled=scaled, per_item=per_item, excluded=excluded,
+                       coverage={"expected": len(items), "scored": len(per_item), "missing": [], "extra": []},
+                       config=config_dict, notes=notes, columns=columns)
+
+
+def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,
+                seed: int = 0, config: GazeSuiteConfig | None = None,
+                style_encoder: gaze.StyleEncoder | None = None) -> ScoreReport:
+    """Score predictions on disk against a gaze–head root or split folder (:mod:`dyadbench.datasets.gaze`).
+
+    ``pred``: a folder of ``<clip>_subject.npy`` (T, 7) degree arrays (``<clip>.npy`` is accepted too), or
+    one ``.npz`` keyed by those stems. Missing predictions are listed in the coverage; files matching no
+    ground-truth clip are counted as extra.
+    """
+    source = open_split(Path(gt), split)
+    files = open_predictions(pred)
+    items, missing, used = [], [], set()
+    for clip in source:
+        stem = clip.agent_ids()[0]
+        name = stem if stem in files else clip.clip_id if clip.clip_id in files else None
+        if name is None:
+            missing.append(stem)
+            continue
+        used.add(name)
+        p = clip.participants[0]
+        items.append(ScoreItem(stem=stem, pred=files[name].load(GAZE7.dim), gt=p.motion, audio=p.audio,
+                               identity=p.identity, fps=clip.fps, sample_rate=clip.sample_rate))
+    report = score_arrays(items, jobs=jobs, seed=seed, config=config, style_encoder=style_encoder)
+    report.coverage = {"expected": len(source), "scored": report.n_scored, "missing": missing,
+                       "extra": sorted(set(files) - used)}
+    report.config["ground_truth"] = source.describe()
+    return report
