@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "score": ("dyadbench.cli.score:score", "Score predictions on disk against ground truth."),
     "data": ("dyadbench.cli.data:data", "Generate, validate and describe datasets."),
     "eval": ("dyadbench.cli.eval:eval_command", "Run a model through the streaming protocol and score it."),
+    "sweep": ("dyadbench.cli.sweep:sweep", "Evaluate models over splits and contexts, one result file each."),
     "train": ("dyadbench.cli.train:train", "Train a reference model (TIMAR, SFMS, StyGazeTalk)."),
     "leaderboard": ("dyadbench.cli.leaderboard:leaderboard", "Build CSV/LaTeX leaderboards from result files."),
     "plot": ("dyadbench.cli.plot:plot", "Plot trajectories and metric-vs-context curves."),
