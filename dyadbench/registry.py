@@ -100,8 +100,8 @@ MODELS.add("oracle", "baselines.oracle:build_oracle",
            "Ground-truth copy (ORACLE: reads the agent's ground truth; never ranked)", ("oracle",))
 MODELS.add("gaze-static", "baselines.gaze:build_static", "Gaze straight ahead, head still (gaze-head)",
            ("baseline", "gaze"))
-MODELS.add("gaze-headcopy", "baselines.gaze:build_headcopy", "Eyes follow the head direction (gaze-head)",
-           ("baseline", "gaze"))
+MODELS.add("gaze-headcopy", "baselines.gaze:build_headcopy",
+           "Eyes follow the ground-truth head direction (ORACLE head; gaze-head; never ranked)", ("oracle", "gaze"))
 MODELS.add("timar", "models.timar.registry:build_timar",
            "TIMAR: turn-level interleaved masked autoregression with a diffusion head", ("reference",))
 MODELS.add("timar-stream", "models.timar.registry:build_timar_stream",

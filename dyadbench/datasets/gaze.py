@@ -10,7 +10,7 @@ On-disk layout (one speaker per session; HAGE-style recordings, or the synthetic
                               #   (yaw + = the subject's left, pitch + = up; eyes are eye-in-head);
                               # fps () float = 25; speaker () str;
                               # optional: speaking (T,) bool, valid (T,) bool (False = tracker loss)
-        <session>.wav         # 16 kHz mono speech (PCM 16/32-bit or float), T/25 s long (± 1 frame)
+        <session>.wav         # 16 kHz mono speech (integer PCM or float), T/25 s long (± 1 frame)
 
 Reading a session (:func:`open_split`):
 
@@ -32,11 +32,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from scipy.io import wavfile
 
 from dyadbench import atomic
 from dyadbench.arrays import check_motion, load_npz
 from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.wav import read_wav, write_wav
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, GAZE7, SAMPLE_RATE
 from dyadbench.paths import cache_dir
@@ -51,35 +51,6 @@ SYNTHETIC_SEED = 0
 
 
 # --- files ---------------------------------------------------------------------------------------------
-
-def write_wav(path: Path, audio: np.ndarray, sample_rate: int = SAMPLE_RATE) -> Path:
-    """16-bit PCM mono wav, written atomically (values clipped to [-1, 1])."""
-    pcm = (np.clip(np.asarray(audio, dtype=np.float64), -1.0, 1.0) * 32767.0).round().astype(np.int16)
-    buf = io.BytesIO()
-    wavfile.write(buf, sample_rate, pcm)
-    return atomic.write_bytes(path, buf.getvalue())
-
-
-def read_wav(path: Path) -> tuple[np.ndarray, int]:
-    """Mono float32 audio in [-1, 1] and its sample rate; InputError naming the file otherwise."""
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    try:
-        rate, data = wavfile.read(path)
-    except (ValueError, OSError, EOFError) as exc:
-        raise InputError(path, f"unreadable wav ({exc})") from None
-    if data.ndim != 1:
-        raise InputError(path, f"expected mono audio, got {data.shape[1]} channels")
-    if data.dtype == np.int16:
-        audio = data / 32768.0
-    elif data.dtype == np.int32:
-        audio = data / 2147483648.0
-    elif data.dtype.kind == "f":
-        audio = data
-    else:
-        raise InputError(path, f"unsupported wav sample type {data.dtype}")
-    return audio.astype(np.float32), int(rate)
-
 
 def write_session(split_dir: Path, clip: DyadicClip) -> Path:
     """Write a single-participant gaze7 clip as ``<split_dir>/<clip_id>.npz`` + ``.wav`` (atomically)."""
@@ -259,9 +230,7 @@ class GazeSource(ClipSource):
             raise InputError(f"{self.root}/{self.split}", f"no clip {clip_id!r}") from None
         data = self._session(session)
         wav_path = self.root / self.split / f"{session}.wav"
-        audio, rate = read_wav(wav_path)
-        if rate != SAMPLE_RATE:
-            raise InputError(wav_path, f"sample rate {rate} Hz, expected {SAMPLE_RATE}")
+        audio = read_wav(wav_path, sample_rate=SAMPLE_RATE)
         hop = int(round(SAMPLE_RATE / FPS))
         audio = fit_audio(audio, len(data.motion), wav_path)[a * hop:b * hop]
         meta = {"session": session, "speaker": data.speaker, "first_frame": a}
@@ -352,9 +321,7 @@ def validate_folder(folder: Path) -> GazeValidation:
             if data.speaker != row["speaker"]:
                 raise InputError(npz, f"speaker {data.speaker!r} differs from {INDEX}'s {row['speaker']!r}")
             wav = npz.with_suffix(".wav")
-            audio, rate = read_wav(wav)
-            if rate != SAMPLE_RATE:
-                raise InputError(wav, f"sample rate {rate} Hz, expected {SAMPLE_RATE}")
+            audio = read_wav(wav, sample_rate=SAMPLE_RATE)
             fit_audio(audio, len(data.motion), wav)
             keep = keep_mask(data)
             if not keep.all():
