@@ -1,0 +1,176 @@
+"""``dyadbench train sfms-tokenizer`` and ``dyadbench train sfms``: the two SFMS training stages.
+
+Single process by default; under ``torchrun --nproc_per_node N -m dyadbench train ...`` the same
+commands train data-parallel (torch.distributed; rank 0 validates and writes the checkpoint).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+import numpy as np
+import torch
+
+from dyadbench import atomic
+from dyadbench.datasets.base import DyadicClip
+from dyadbench.errors import ConfigError
+from dyadbench.registry import DATASETS
+from dyadbench.seeding import rng as seeded_rng
+from dyadbench.training.checkpoint import save_checkpoint
+from models.sfms.bundle import PREDICTOR_MODEL, TOKENIZER_MODEL, load_tokenizer
+from models.sfms.config import PREDICTOR_PRESETS, TOKENIZER_PRESETS, predictor_preset, to_dict, tokenizer_preset
+from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed
+from models.sfms.distributed import close_world, init_world
+from models.sfms.train_predictor import fit_predictor
+from models.sfms.train_tokenizer import eval_windows, fit_tokenizer
+
+
+def parse_overrides(pairs: tuple[str, ...]) -> dict:
+    """``FIELD=VALUE`` pairs; VALUE is read as JSON (numbers, booleans, lists, null) or else a string."""
+    out = {}
+    for pair in pairs:
+        key, sep, value = pair.partition("=")
+        if not sep:
+            raise ConfigError(f"--set expects FIELD=VALUE, got {pair!r}")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+        if isinstance(out[key], list):
+            out[key] = tuple(out[key])
+    return out
+
+
+def load_split_clips(dataset: str, root: Path | None, clips: int | None, val_frac: float,
+                     seed: int) -> tuple[list[DyadicClip], list[DyadicClip], dict]:
+    """The train split (first ``clips`` clips), divided into train / validation clips by a seeded draw."""
+    source = DATASETS.load(dataset)(root, "train")
+    ids = source.clip_ids()[:clips] if clips else source.clip_ids()
+    if len(ids) < 2:
+        raise ConfigError(f"need at least 2 training clips, {dataset}/train has {len(ids)}")
+    order = seeded_rng(seed, "sfms-val").permutation(len(ids))
+    n_val = max(1, int(round(val_frac * len(ids))))
+    val_ids = {ids[i] for i in order[:n_val]}
+    loaded = [source.load(i) for i in ids]
+    describe = {**source.describe(), "clips_used": len(ids), "val_clips": sorted(val_ids)}
+    return [c for c in loaded if c.clip_id not in val_ids], [c for c in loaded if c.clip_id in val_ids], describe
+
+
+def _common(f):
+    options = [
+        click.option("--config", "preset", default="tiny", show_default=True,
+                     help="Preset: tiny (minutes on 2 CPU cores) or paper (window 48, width 256)."),
+        click.option("--set", "overrides", multiple=True, metavar="FIELD=VALUE",
+                     help="Override any config field (every spec decision is one), e.g. --set keyframes=10."),
+        click.option("--dataset", default="synthetic", show_default=True,
+                     help="Registered dataset to train on (`dyadbench datasets`)."),
+        click.option("--root", type=click.Path(path_type=Path), default=None,
+                     help="Dataset root (default: the dataset's own default, e.g. the embedded corpus cache)."),
+        click.option("--clips", type=int, default=None, help="Use only the first N train clips (quick runs)."),
+        click.option("--val-frac", type=float, default=0.1, show_default=True,
+                     help="Fraction of train clips held out for validation / best-checkpoint selection."),
+        click.option("--steps", type=int, default=None, help="Training steps (default: the preset's)."),
+        click.option("--batch", type=int, default=None, help="Windows per step (default: the preset's)."),
+        click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random choice."),
+        click.option("--threads", type=int, default=2, show_default=True, help="torch CPU threads."),
+        click.option("--device", default="cpu", show_default=True, help="cpu or cuda (one GPU per process)."),
+        click.option("--out", type=click.Path(path_type=Path), required=True, help="Checkpoint file to write."),
+    ]
+    for option in reversed(options):
+        f = option(f)
+    return f
+
+
+def _overrides(overrides: tuple[str, ...], steps: int | None, batch: int | None) -> dict:
+    out = parse_overrides(overrides)
+    out.update({k: v for k, v in (("steps", steps), ("batch", batch)) if v is not None})
+    return out
+
+
+def _write_log(out: Path, history: dict) -> Path:
+    return atomic.write_json(out.with_suffix(".history.json"), history)
+
+
+@click.command("sfms-tokenizer")
+@_common
+@click.option("--keyframes", type=int, default=None, help="k keyframes per 48-frame window (D11).")
+@click.option("--keyframe-mode", type=click.Choice(["dynamic", "static", "dense"]), default=None,
+              help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
+@click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")
+def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, steps, batch, seed, threads, device, out,
+                    keyframes, keyframe_mode, quantizer) -> None:
+    """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
+
+    \b
+    Example (the shipped tiny tokenizer):
+      dyadbench train sfms-tokenizer --config tiny --out sfms-tok.pt
+    """
+    torch.set_num_threads(threads)
+    extra = _overrides(overrides, steps, batch)
+    extra.update({k: v for k, v in (("keyframes", keyframes), ("keyframe_mode", keyframe_mode),
+                                    ("quantizer", quantizer)) if v is not None})
+    if preset not in TOKENIZER_PRESETS:
+        raise ConfigError(f"unknown config {preset!r} (known: {', '.join(TOKENIZER_PRESETS)})")
+    cfg = tokenizer_preset(preset, **extra)
+    world = init_world(device)
+    try:
+        train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
+        mean, std = motion_stats(clip_motions(train))
+        norm = [(a - mean) / std for a in clip_motions(train)]
+        val_windows = eval_windows([(a - mean) / std for a in clip_motions(val)], cfg.window)
+        model, history = fit_tokenizer(cfg, norm, val_windows, motion_mean=mean, motion_std=std,
+                                       seed=seed + world.rank, world=world)
+        if world.main:
+            meta = {"model": TOKENIZER_MODEL, "preset": preset, "seed": seed, "data": describe,
+                    "best_val_mse_z": history["best_val_mse_z"], "best_step": history["best_step"],
+                    "train_seconds": history["train_seconds"], "world_size": world.size, "val": history["val"]}
+            save_checkpoint(out, model_state=model.state_dict(), config={"tokenizer": to_dict(cfg)}, meta=meta)
+            log = _write_log(out, history)
+            click.echo(f"tokenizer: best validation MSE {history['best_val_mse_z']:.4f} (z-space) at step "
+                       f"{history['best_step']}, {history['train_seconds']:.0f} s -> {out} (history {log})")
+    finally:
+        close_world(world)
+
+
+@click.command("sfms")
+@_common
+@click.option("--tokenizer", "tokenizer_path", type=click.Path(path_type=Path, exists=True, dir_okay=False),
+              required=True, help="Stage-1 checkpoint from `dyadbench train sfms-tokenizer`.")
+def train_predictor(preset, overrides, dataset, root, clips, val_frac, steps, batch, seed, threads, device, out,
+                    tokenizer_path) -> None:
+    """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
+
+    \b
+    Example (the shipped tiny model):
+      dyadbench train sfms --config tiny --tokenizer sfms-tok.pt --out models/sfms/checkpoints/sfms-tiny.pt
+    """
+    torch.set_num_threads(threads)
+    if preset not in PREDICTOR_PRESETS:
+        raise ConfigError(f"unknown config {preset!r} (known: {', '.join(PREDICTOR_PRESETS)})")
+    cfg = predictor_preset(preset, **_overrides(overrides, steps, batch))
+    tokenizer = load_tokenizer(tokenizer_path)
+    world = init_world(device)
+    try:
+        train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
+        raw_train, raw_val = directed_clips(train, cfg), directed_clips(val, cfg)
+        rows = np.concatenate([r[3] for r in raw_train]).astype(np.float64)
+        audio_mean, audio_std = rows.mean(0).astype(np.float32), np.maximum(rows.std(0), 1e-4).astype(np.float32)
+        mm, ms = tokenizer.motion_mean.numpy(), tokenizer.motion_std.numpy()
+        model, history = fit_predictor(
+            cfg, tokenizer, normalise_directed(raw_train, mm, ms, audio_mean, audio_std),
+            normalise_directed(raw_val, mm, ms, audio_mean, audio_std), audio_mean=audio_mean,
+            audio_std=audio_std, seed=seed + world.rank, world=world)
+        if world.main:
+            meta = {"model": PREDICTOR_MODEL, "preset": preset, "seed": seed, "data": describe,
+                    "tokenizer": str(tokenizer_path), "best_val_ce": history["best_val_ce"],
+                    "best_step": history["best_step"], "train_seconds": history["train_seconds"],
+                    "world_size": world.size, "val": history["val"]}
+            save_checkpoint(out, model_state=model.state_dict(), config=model.config(), meta=meta)
+            log = _write_log(out, history)
+            last = history["val"][-1]
+            click.echo(f"predictor: best validation weighted CE {history['best_val_ce']:.3f} (unigram "
+                       f"{last['unigram_ce']:.3f}), {history['train_seconds']:.0f} s -> {out} (history {log})")
+    finally:
+        close_world(world)

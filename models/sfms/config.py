@@ -1,0 +1,248 @@
+"""SFMS configurations: every numbered decision of the implementation spec is a named field.
+
+Two dataclasses, :class:`TokenizerConfig` (stage 1) and :class:`PredictorConfig` (stage 2), and two
+presets each: ``paper`` (window 48, width 256, the spec's layer counts; tokenizer ≈ 9.7 M parameters)
+and ``tiny`` (width 64, one layer per stack; minutes on 2 CPU cores). Configs are frozen and are saved
+as plain dicts in checkpoints and in results (``ModelInfo.config``).
+
+Decision → field map (decision ids of the SFMS implementation spec, §6):
+
+====  ============================================================================================
+D1    ``mask_sharing`` = "frame" (one keyframe mask shared by all channels; only value implemented)
+D2    ``mask_loss_weight`` (α = 0.1; 0 = off), ``mask_target`` = "best_sample" (the best of S samples)
+D3    ``kf_loss_weight`` (keyframe-focused reconstruction MSE, weight 1)
+D4    ``warmup_frac`` (random placements, scorer frozen), ``dense_aux_weight``
+D5    ``lr_main``, ``lr_scorer``, ``betas``, ``weight_decay``, ``scorer_update_every``
+D6    ``tau_start``, ``tau_min``, ``tau_anneal_frac``
+D7    ``gumbel_samples`` (S), ``recon_on`` ("all" | "best")
+D8    ``scorer_layers``, ``keyframe_layers``, ``transition_layers``, ``decoder_layers``, ``heads``,
+      ``ffn``, ``dropout``, ``conv_kernel``
+D9    ``vq_codebook_weight``, ``vq_commit_weight``
+D10   ``fsq_levels`` ([8, 6, 5] → 240 codes), ``pe_dim`` (concatenated positional encoding)
+D11   ``keyframes`` (k = 7)
+D12   ``PredictorConfig.tokenise`` = "window" (each 48-frame window tokenised on the fly)
+D13   ``PredictorConfig.speaker_input`` = "continuous"
+D14   ``PredictorConfig.speaker_span`` ("concurrent" = [t−40, t+8) | "past" = [t−40, t))
+D15   ``PredictorConfig.keyframe_loss`` ("soft_dtw" | "bce"), ``sdtw_gamma``, ``sdtw_weight``
+D16   ``PredictorConfig.class_weights`` = "group" (w₀ = 0.5/(1−ρ), w_kf = 0.5/ρ, ρ = k/T)
+D17   ``PredictorConfig.sampling`` ("multinomial" | "greedy"), ``temperature``, ``top_k``
+D18   ``PredictorConfig.keyframe_cap`` (None = off; k + 2 in the spec's option)
+D22   ``normalisation`` = "zscore" (train-split mean/std per dim; MSE reported in z-space and raw)
+D24   ``PredictorConfig.neutral_prob`` (0.3), ``pre_start_prob`` (0.05); neutral = zero vector
+D25   predictor layer counts (``speaker_layers`` … ``decoder_layers``)
+D28   ``steps``, ``batch``, learning rates, ``lr_min``, ``warmup_frac``, ``grad_clip``
+D30   ``PredictorConfig.emit`` = "last" (emit the last 8 frames of each decoded 48-window)
+D31   ``scorer_pe`` ("sinusoidal" | "learned")
+====  ============================================================================================
+
+Decisions that concern other datasets (D19 REACT emotion head, D20/D21 L2L protocol and metric
+details, D23 per-host models, D26/D27 naming and data statistics, D29 predecessor quirks) are not
+fields here: they belong to the evaluation suites or were not implemented.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+from typing import Any
+
+from dyadbench.errors import ConfigError
+
+TOKENIZER_CHOICES = {
+    "keyframe_mode": ("dynamic", "static", "dense"),
+    "quantizer": ("fsq", "vq"),
+    "mask_sharing": ("frame",),
+    "mask_target": ("best_sample",),
+    "recon_on": ("all", "best"),
+    "scorer_pe": ("sinusoidal", "learned"),
+    "normalisation": ("zscore",),
+}
+PREDICTOR_CHOICES = {
+    "tokenise": ("window",),
+    "speaker_input": ("continuous",),
+    "speaker_span": ("concurrent", "past"),
+    "keyframe_loss": ("soft_dtw", "bce"),
+    "class_weights": ("group",),
+    "sampling": ("multinomial", "greedy"),
+    "emit": ("last",),
+}
+
+
+def _check_choices(cfg: Any, choices: dict[str, tuple[str, ...]]) -> None:
+    for name, allowed in choices.items():
+        value = getattr(cfg, name)
+        if value not in allowed:
+            raise ConfigError(f"{type(cfg).__name__}.{name} = {value!r}; implemented: {', '.join(allowed)}")
+
+
+@dataclass(frozen=True)
+class TokenizerConfig:
+    """Stage 1: keyframe scorer + Gumbel top-k + keyframe quantiser + inpainter (spec §2)."""
+
+    dim: int = 56  # motion dims d (layout-agnostic)
+    window: int = 48  # T
+    width: int = 256
+    heads: int = 8
+    ffn: int = 1024
+    dropout: float = 0.1
+    pe_dim: int = 64  # D10: concatenated PE width
+    conv_kernel: int = 3  # D8
+    scorer_layers: int = 2  # D8
+    keyframe_layers: int = 3
+    transition_layers: int = 3
+    decoder_layers: int = 2
+    scorer_pe: str = "sinusoidal"  # D31
+    keyframes: int = 7  # D11: k
+    keyframe_mode: str = "dynamic"  # Table III arms: dynamic (learned top-k) | static (uniform) | dense
+    mask_sharing: str = "frame"  # D1
+    quantizer: str = "fsq"  # fsq | vq
+    fsq_levels: tuple[int, ...] = (8, 6, 5)  # D10
+    vq_codes: int = 256
+    vq_codebook_weight: float = 1.0  # D9
+    vq_commit_weight: float = 1.0  # D9
+    topk_eps: float = 1e-10
+    gumbel_samples: int = 4  # D7: S
+    recon_on: str = "all"  # D7
+    kf_loss_weight: float = 1.0  # D3
+    mask_loss_weight: float = 0.1  # D2: α
+    mask_target: str = "best_sample"  # D2
+    warmup_frac: float = 0.1  # D4
+    dense_aux_weight: float = 0.0  # D4
+    tau_start: float = 1.0  # D6
+    tau_min: float = 0.3  # D6
+    tau_anneal_frac: float = 0.6  # D6
+    lr_main: float = 2e-4  # D5
+    lr_scorer: float = 1e-4  # D5
+    lr_min: float = 1e-6
+    betas: tuple[float, float] = (0.9, 0.98)
+    weight_decay: float = 0.01
+    grad_clip: float = 1.0
+    scorer_update_every: int = 1  # D5: 1 = both optimisers step every iteration
+    steps: int = 20_000  # D28
+    batch: int = 256
+    val_every: int = 500
+    normalisation: str = "zscore"  # D22
+
+    def __post_init__(self) -> None:
+        _check_choices(self, TOKENIZER_CHOICES)
+        if self.keyframe_mode != "dense" and not 1 <= self.keyframes <= self.window:
+            raise ConfigError(f"keyframes must be in 1..window ({self.window}), got {self.keyframes}")
+        if self.width % self.heads:
+            raise ConfigError(f"width {self.width} is not divisible by heads {self.heads}")
+        if any(level < 2 for level in self.fsq_levels):
+            raise ConfigError(f"FSQ levels must be >= 2, got {self.fsq_levels}")
+
+    @property
+    def n_codes(self) -> int:
+        if self.quantizer == "fsq":
+            n = 1
+            for level in self.fsq_levels:
+                n *= level
+            return n
+        return self.vq_codes
+
+    @property
+    def n_classes(self) -> int:
+        """Per-frame classes: 0 = transition frame, 1 + code = keyframe."""
+        return self.n_codes + 1
+
+    @property
+    def effective_keyframes(self) -> int:
+        return self.window if self.keyframe_mode == "dense" else self.keyframes
+
+
+@dataclass(frozen=True)
+class PredictorConfig:
+    """Stage 2: listening-head predictor over per-frame classes (spec §3)."""
+
+    past: int = 40
+    future: int = 8
+    width: int = 256
+    heads: int = 8
+    ffn: int = 1024
+    dropout: float = 0.1
+    speaker_layers: int = 2  # D25
+    audio_layers: int = 2
+    fusion_blocks: int = 2
+    listener_layers: int = 2
+    context_layers: int = 4
+    decoder_layers: int = 2
+    audio_bins: int = 128
+    audio_rows_per_frame: int = 4  # mel rows per motion frame (hop 10 ms at 25 fps)
+    audio_window_s: float = 0.025  # mel analysis window
+    tokenise: str = "window"  # D12
+    speaker_input: str = "continuous"  # D13
+    speaker_span: str = "concurrent"  # D14
+    keyframe_loss: str = "soft_dtw"  # D15
+    sdtw_gamma: float = 0.1  # D15
+    sdtw_weight: float = 1.0  # D15
+    class_weights: str = "group"  # D16
+    sampling: str = "multinomial"  # D17
+    temperature: float = 1.0  # D17
+    top_k: int = 0  # D17: 0 = off
+    keyframe_cap: int | None = None  # D18
+    neutral_prob: float = 0.3  # D24
+    pre_start_prob: float = 0.05  # D24
+    emit: str = "last"  # D30
+    lr: float = 3e-4  # D28
+    lr_min: float = 1e-6
+    betas: tuple[float, float] = (0.9, 0.98)
+    weight_decay: float = 0.01
+    warmup_frac: float = 0.05
+    grad_clip: float = 1.0
+    steps: int = 20_000
+    batch: int = 256
+
+    def __post_init__(self) -> None:
+        _check_choices(self, PREDICTOR_CHOICES)
+        if self.width % self.heads:
+            raise ConfigError(f"width {self.width} is not divisible by heads {self.heads}")
+        if self.past < 1 or self.future < 1:
+            raise ConfigError(f"past and future must be >= 1, got {self.past}/{self.future}")
+
+    @property
+    def window(self) -> int:
+        return self.past + self.future
+
+
+TOKENIZER_PRESETS: dict[str, TokenizerConfig] = {
+    "paper": TokenizerConfig(),
+    "tiny": TokenizerConfig(width=64, heads=4, ffn=128, pe_dim=16, scorer_layers=1, keyframe_layers=1,
+                            transition_layers=1, decoder_layers=1, fsq_levels=(5, 3), vq_codes=15,
+                            keyframes=6, gumbel_samples=2, steps=300, batch=32, tau_min=0.5,
+                            lr_main=1e-3, lr_scorer=5e-4, val_every=100),
+}
+PREDICTOR_PRESETS: dict[str, PredictorConfig] = {
+    "paper": PredictorConfig(),
+    "tiny": PredictorConfig(width=64, heads=4, ffn=128, speaker_layers=1, audio_layers=1, fusion_blocks=1,
+                            listener_layers=1, context_layers=1, decoder_layers=1, audio_bins=32,
+                            steps=300, batch=32, lr=1e-3),
+}
+
+
+def _preset(presets: dict, name: str, kind: str):
+    try:
+        return presets[name]
+    except KeyError:
+        raise ConfigError(f"unknown {kind} config {name!r} (known: {', '.join(presets)})") from None
+
+
+def tokenizer_preset(name: str, **overrides: Any) -> TokenizerConfig:
+    return replace(_preset(TOKENIZER_PRESETS, name, "tokenizer"), **overrides)
+
+
+def predictor_preset(name: str, **overrides: Any) -> PredictorConfig:
+    return replace(_preset(PREDICTOR_PRESETS, name, "predictor"), **overrides)
+
+
+def to_dict(cfg: TokenizerConfig | PredictorConfig) -> dict:
+    """Plain dict (tuples become lists) for checkpoints and results."""
+    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(cfg).items()}
+
+
+def from_dict(cls: type, data: dict):
+    """Rebuild a config saved by :func:`to_dict`; unknown keys are an error (a foreign checkpoint)."""
+    known = {f.name for f in fields(cls)}
+    unknown = set(data) - known
+    if unknown:
+        raise ConfigError(f"{cls.__name__}: unknown fields {sorted(unknown)}")
+    return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})

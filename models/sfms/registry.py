@@ -1,0 +1,30 @@
+"""``build_sfms``: the model factory registered as ``sfms`` in :data:`dyadbench.registry.MODELS`."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from dyadbench.errors import InputError
+from dyadbench.protocol.interface import ModelInfo, ModelOptions
+from dyadbench.training.checkpoint import file_digest
+from models.sfms.bundle import load_sfms
+from models.sfms.stream import SFMSStreamingModel
+
+SHIPPED_WEIGHTS = Path(__file__).parent / "checkpoints" / "sfms-tiny.pt"
+REPRODUCE = ("dyadbench train sfms-tokenizer --config tiny --out TOK.pt && "
+             "dyadbench train sfms --config tiny --tokenizer TOK.pt --out models/sfms/checkpoints/sfms-tiny.pt")
+
+
+def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
+    """The SFMS listener model from ``options.weights`` or the shipped tiny checkpoint.
+
+    ``options.extra["greedy"]`` (bool) overrides the configured sampling (D17).
+    """
+    path = Path(options.weights) if options.weights is not None else SHIPPED_WEIGHTS
+    if not path.is_file():
+        where = "--weights" if options.weights is not None else "the shipped checkpoint"
+        raise InputError(path, f"SFMS weights not found ({where}); train them with: {REPRODUCE}")
+    model, meta = load_sfms(path)
+    info = ModelInfo(name="sfms", layout="flame56", version="1", weights_digest=file_digest(path),
+                     weights_path=str(path), config={**model.config(), "train_meta": meta})
+    return SFMSStreamingModel(model, info, greedy=options.extra.get("greedy"))
