@@ -21,6 +21,7 @@ from functools import lru_cache
 import numpy as np
 
 from dyadbench.datasets.wav import float_to_pcm16, pcm16_to_float
+from dyadbench.features.activity import segments_mask
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.signals import block_mean, upsample_linear
 from dyadbench.synth.styles import Style
@@ -136,9 +137,5 @@ def speech_signals(r: np.random.Generator, track: Track, style: Style, n_frames:
     voiced = env > 0
     pitch = block_mean(np.where(voiced, f0 / style.f0_base - 1.0, 0.0), per_frame)
     vowel_frame = block_mean(vowel * env, per_frame) / np.maximum(env_frame, 1e-9)
-    centres = (np.arange(n_frames) + 0.5) / fps
-    speaking = np.zeros(n_frames, dtype=bool)
-    for start, end in track.phrases:
-        speaking |= (centres >= start) & (centres < end)
-    return SpeechSignals(speaking=speaking, envelope=env_frame, vowel=np.where(env_frame > 0, vowel_frame, 0.0),
+    return SpeechSignals(speaking=segments_mask(track.phrases, n_frames, fps), envelope=env_frame, vowel=np.where(env_frame > 0, vowel_frame, 0.0),
                          pitch=pitch, audio=audio)

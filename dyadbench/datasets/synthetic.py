@@ -1,0 +1,112 @@
+"""The embedded default corpus: synthetic dialogues generated on first use, cached, read as DualTalk.
+
+``open_split(None, split)`` uses ``<cache>/synthetic-v<generator version>/<split>/`` (the cache is
+``$DYADBENCH_CACHE`` or the user's cache directory, :func:`dyadbench.paths.cache_dir`). When that folder
+lacks its ``synthetic.json`` marker, the split is generated (:mod:`dyadbench.synth`, seed
+``DEFAULT_SEED``) into a temporary sibling folder which is then renamed into place, so a split folder is
+either complete or absent. A message on stderr says when it generates and which folder is used.
+``root`` may name another folder to hold the splits (for example a shared disk).
+
+Splits and sizes: test 533 and ood 377 dialogues (DualTalk's counts), train 800 (about 7 hours, enough
+for small models, generated in about a minute), val 100; mean length about 31 s.
+Clips read back carry the generator's ground truth: identities, ``meta["speaking"]`` from the generated
+speech segments (``meta["speaking_source"] = "generator"``), turns and segments.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import sys
+import tempfile
+from pathlib import Path
+
+from dyadbench.datasets.dualtalk import DualTalkSource
+from dyadbench.errors import InputError
+from dyadbench.features.activity import segments_mask
+from dyadbench.motion import FPS
+from dyadbench.paths import cache_dir
+from dyadbench.synth.styles import GENERATOR_VERSION
+from dyadbench.synth.writers import MARKER, default_size, write_dualtalk_split
+
+DEFAULT_SEED = 0
+
+
+def corpus_root() -> Path:
+    """Where the default corpus lives: ``<cache>/synthetic-v<version>``."""
+    return cache_dir() / f"synthetic-v{GENERATOR_VERSION}"
+
+
+def _read_marker(folder: Path, split: str) -> dict | None:
+    """The split's marker when it is complete and matches this generator version, seed and size."""
+    try:
+        marker = json.loads((folder / MARKER).read_text())
+    except (OSError, ValueError):
+        return None
+    expected = {"version": GENERATOR_VERSION, "seed": DEFAULT_SEED, "split": split, "clips": default_size(split)}
+    return marker if all(marker.get(k) == v for k, v in expected.items()) else None
+
+
+def _generate(base: Path, split: str) -> None:
+    base.mkdir(parents=True, exist_ok=True)
+    jobs = max(1, min(4, os.cpu_count() or 1))
+    print(f"dyadbench: generating the synthetic {split} split ({default_size(split)} dialogues, seed "
+          f"{DEFAULT_SEED}) into {base / split} (first use only)", file=sys.stderr)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{split}-", dir=base))
+    try:
+        write_dualtalk_split(tmp, split=split, seed=DEFAULT_SEED, jobs=jobs)
+        target = base / split
+        if target.exists() and _read_marker(target, split) is None:
+            shutil.rmtree(target)  # stale or from another generator version
+        try:
+            os.rename(tmp / split, target)
+        except OSError:
+            if _read_marker(target, split) is None:  # not a concurrent run that finished first
+                raise
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+
+
+class SyntheticSource(DualTalkSource):
+    """A generated split read through the DualTalk adapter, with the generator's annotations."""
+
+    dataset = "synthetic"
+
+    def __init__(self, folder: Path, split: str, marker: dict):
+        super().__init__(folder, split)
+        self._marker = marker
+        self._records = marker["records"]
+
+    def identity(self, clip_id: str, speaker: str) -> str | None:
+        return self._records[clip_id]["identities"][speaker]
+
+    def extra_meta(self, clip_id: str) -> dict:
+        record = self._records[clip_id]
+        n = record["frames"]
+        return {"speaking": {who: segments_mask([(s, e) for s, e, _ in segs], n, FPS)
+                             for who, segs in record["segments"].items()},
+                "speaking_source": "generator",
+                "turns": [tuple(t) for t in record["turns"]],
+                "segments": {who: [tuple(s) for s in segs] for who, segs in record["segments"].items()},
+                "generator": {k: self._marker[k] for k in ("generator", "version", "seed", "split", "style_pool")}}
+
+    def describe(self) -> dict:
+        info = super().describe()
+        info.update(generator_version=GENERATOR_VERSION, seed=DEFAULT_SEED)
+        return info
+
+
+def open_split(root: Path | None, split: str) -> SyntheticSource:
+    """The default corpus split (generated on first use into ``root`` or the cache), read lazily."""
+    default_size(split)  # rejects unknown split names before anything is written
+    base = corpus_root() if root is None else Path(root)
+    folder = base / split
+    marker = _read_marker(folder, split)
+    if marker is None:
+        _generate(base, split)
+        marker = _read_marker(folder, split)
+        if marker is None:
+            raise InputError(folder, f"generation finished without a valid {MARKER}")
+    print(f"dyadbench: using the synthetic {split} split in {folder}", file=sys.stderr)
+    return SyntheticSource(folder, split, marker)

@@ -1,0 +1,107 @@
+"""Write synthetic splits in the DualTalk layout, byte-for-byte deterministic for a seed.
+
+``write_dualtalk_split(out, split="test", clips=None, seed=0, jobs=1)`` writes ``out/<split>/``:
+
+- ``<clip>_speaker{1,2}.wav``: 16 kHz mono 16-bit PCM (the generator's audio is on that grid, so it
+  reads back exactly);
+- ``<clip>_speaker{1,2}.npz``: ``exp`` (T,50) and ``pose`` (T,6) = [head rotation | jaw] in DualTalk's
+  own order (float32, via :func:`dyadbench.datasets.dualtalk_files.write_gt_npz`), plus ``shape`` (T,100),
+  ``tex`` (T,50), ``cam`` (T,3), ``light`` (T,9,3) like the release: a per-person constant plus small
+  per-frame tracker jitter (the benchmark ignores them);
+- ``synthetic.json``: generator name, version, seed, split and per clip the identities, turns and speech
+  segments (what the DualTalk files cannot hold). Written last: its presence marks a complete split.
+
+Clip ``i`` depends only on (seed, split, i), so the files do not depend on ``jobs``.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dyadbench import atomic
+from dyadbench.datasets.base import DyadicClip
+from dyadbench.datasets.dualtalk_files import write_gt_npz
+from dyadbench.datasets.wav import write_wav
+from dyadbench.errors import ConfigError
+from dyadbench.seeding import rng as seeded_rng
+from dyadbench.synth.corpus import make_clip
+from dyadbench.synth.styles import GENERATOR_VERSION, split_pool
+
+MARKER = "synthetic.json"
+# default sizes: DualTalk's test and ood splits; train sized to generate in about a minute
+SPLIT_SIZES = {"train": 800, "test": 533, "ood": 377, "val": 100}
+
+
+def default_size(split: str) -> int:
+    split_pool(split)  # validates the name
+    return SPLIT_SIZES[split]
+
+
+def render_extras(identity: str, n_frames: int, seed: int) -> dict[str, np.ndarray]:
+    """``shape``, ``tex``, ``cam``, ``light`` arrays like the release: per-person constants + jitter."""
+    person = seeded_rng(seed, "render-person", identity)
+    frame = seeded_rng(seed, "render-frames", identity, n_frames)
+    base = {"shape": person.normal(0.0, 0.8, (1, 100)), "tex": person.normal(0.0, 1.0, (1, 50)),
+            "cam": np.array([[person.uniform(7.5, 9.5), person.normal(0, 0.03), person.normal(0.03, 0.02)]]),
+            "light": person.normal(0.0, 0.3, (1, 9, 3)) + np.array([3.4, 0, 0, 0, 0, 0, 0, 0, 0])[None, :, None]}
+    jitter = {"shape": 0.1, "tex": 0.08, "cam": 0.01, "light": 0.05}
+    return {k: (v + frame.normal(0.0, jitter[k], (n_frames, *v.shape[1:]))).astype(np.float32)
+            for k, v in base.items()}
+
+
+def write_clip(folder: Path, clip: DyadicClip, seed: int) -> None:
+    """The four DualTalk files of one synthetic dialogue."""
+    for p in clip.participants:
+        stem = folder / f"{clip.clip_id}_{p.name}"
+        write_wav(stem.with_suffix(".wav"), p.audio, clip.sample_rate)
+        write_gt_npz(stem.with_suffix(".npz"), p.motion,
+                     extra=render_extras(p.identity or clip.clip_id, p.motion.shape[0], seed))
+
+
+def clip_record(clip: DyadicClip) -> dict:
+    """What ``synthetic.json`` keeps about one clip."""
+    return {"frames": clip.num_frames,
+            "identities": {p.name: p.identity for p in clip.participants},
+            "turns": [[who, float(s), float(e)] for who, s, e in clip.meta["turns"]],
+            "segments": {who: [[s, e, kind] for s, e, kind in segs]
+                         for who, segs in clip.meta["segments"].items()}}
+
+
+def _write_one(args: tuple[Path, str, int, int]) -> tuple[str, dict]:
+    folder, split, index, seed = args
+    clip = make_clip(split, index, seed)
+    write_clip(folder, clip, seed)
+    return clip.clip_id, clip_record(clip)
+
+
+def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | None = None, seed: int = 0,
+                         jobs: int = 1, progress: bool = True) -> dict:
+    """Generate ``clips`` dialogues of ``split`` (default: the split's standard size) into ``out/<split>/``.
+
+    Returns the summary also written to ``out/<split>/synthetic.json``.
+    """
+    n = default_size(split) if clips is None else int(clips)
+    if n < 1:
+        raise ConfigError(f"--clips must be at least 1, got {n}")
+    if jobs < 1:
+        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    folder = Path(out) / split
+    folder.mkdir(parents=True, exist_ok=True)
+    tasks = [(folder, split, i, seed) for i in range(n)]
+    bar = dict(total=n, desc=f"synth dualtalk/{split}", unit="clip", disable=not progress)
+    if jobs == 1:
+        results = [_write_one(t) for t in tqdm(tasks, **bar)]
+    else:
+        with ProcessPoolExecutor(max_workers=jobs) as pool:
+            results = list(tqdm(pool.map(_write_one, tasks, chunksize=4), **bar))
+    records = dict(sorted(results))
+    frames = sum(r["frames"] for r in records.values())
+    summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
+               "seed": seed, "split": split, "style_pool": split_pool(split), "clips": n,
+               "hours": frames / 25.0 / 3600.0, "records": records}
+    atomic.write_json(folder / MARKER, summary)
+    return {**{k: v for k, v in summary.items() if k != "records"}, "folder": str(folder)}
