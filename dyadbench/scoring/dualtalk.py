@@ -1,0 +1,263 @@
+"""Score predictions with the DualTalk/TIMAR suite, from memory or from files on disk.
+
+:func:`score_arrays` takes in-memory :class:`~dyadbench.scoring.report.ScoreItem` s;
+:func:`score_paths` takes a prediction folder (or ``.npz``) and a DualTalk split folder. Both go
+through the same per-item job (:func:`_score_job`) and the same report builder, so they give
+identical numbers for identical data.
+
+Per item: the prediction, the agent's ground truth and the partner's ground truth are validated,
+truncated to the shortest length (counted), and scored with
+:func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by ``derive_seed(seed, stem)``. Predictions
+with NaN/inf values or fewer than :data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are
+excluded and listed with the reason. Aggregation is the plain mean over clips.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import scipy
+import sklearn
+
+from dyadbench.arrays import check_motion, nonfinite_count
+from dyadbench.datasets.dualtalk_files import load_gt_npz
+from dyadbench.errors import InputError
+from dyadbench.metrics import dualtalk as suite
+from dyadbench.motion import FLAME56
+from dyadbench.scoring.parallel import THREADS_PER_JOB, map_items
+from dyadbench.scoring.predictions import PredictionFile, open_predictions
+from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
+from dyadbench.seeding import derive_seed
+
+SUITE = "dualtalk"
+AGENT_STEM = re.compile(r"^(?P<clip>.+)_speaker(?P<k>[12])$")
+
+DIVERSITY_SEED_RULE = (
+    "numpy.random.default_rng(dyadbench.seeding.derive_seed(seed, stem)); for each component exp, jaw, "
+    "pose: two draws of 100 frame indices without replacement for the prediction, then two for the "
+    "ground truth")
+
+UNDEFINED_REASONS = {
+    "div_pred": f"fewer than {suite.DIVERSITY_TIMES} frames",
+    "div_gt": f"fewer than {suite.DIVERSITY_TIMES} frames",
+    "rpcc": "constant motion, correlation undefined",
+}
+
+
+@dataclass(frozen=True)
+class _Job:
+    """One agent to score: arrays in memory, or where to read them (a prediction file, npz paths)."""
+
+    stem: str
+    seed: int
+    pred: np.ndarray | PredictionFile
+    gt: np.ndarray | Path
+    partner: np.ndarray | Path
+
+
+@dataclass
+class _Outcome:
+    stem: str
+    frames: dict[str, int] = field(default_factory=dict)
+    metrics: dict[str, float] | None = None
+    excluded: str | None = None
+    error: tuple[str | None, str] | None = None
+
+
+def _load_ground_truth(value: np.ndarray | Path, name: str) -> np.ndarray:
+    if isinstance(value, Path):
+        return load_gt_npz(value)
+    return check_motion(value, name, FLAME56.dim)
+
+
+def _load_job(job: _Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    if isinstance(job.pred, PredictionFile):
+        pred = job.pred.load(FLAME56.dim)
+    else:
+        pred = check_motion(job.pred, f"prediction {job.stem}", FLAME56.dim, finite=False)
+    gt = _load_ground_truth(job.gt, f"ground truth {job.stem}")
+    partner = _load_ground_truth(job.partner, f"partner ground truth of {job.stem}")
+    return pred, gt, partner
+
+
+def _score_job(job: _Job) -> _Outcome:
+    """Load, validate and score one agent. Runs in a worker: errors are returned, not raised."""
+    outcome = _Outcome(job.stem)
+    try:
+        pred, gt, partner = _load_job(job)
+    except InputError as exc:
+        outcome.error = (exc.source, exc.problem)
+        return outcome
+    outcome.frames = {"pred": pred.shape[0], "gt": gt.shape[0], "partner": partner.shape[0]}
+    bad = nonfinite_count(pred)
+    common = min(outcome.frames.values())
+    if bad:
+        outcome.excluded = f"{bad} NaN/inf values in the prediction"
+    elif common < suite.MIN_FRAMES:
+        outcome.excluded = f"only {common} common frames; the suite needs at least {suite.MIN_FRAMES}"
+    else:
+        outcome.metrics = suite.clip_metrics(pred, gt, partner, seed=job.seed)
+    return outcome
+
+
+def columns() -> list[Column]:
+    """Printed columns in the DualTalk/TIMAR table order with the publication scale in the header."""
+    cols = []
+    for name in suite.PAPER_ORDER:
+        info = suite.METRIC_INFO[name]
+        for key in info.keys():
+            scale = suite.SCALE[key]
+            component = key[len(name) + 1:]
+            header = f"{info.header} {component}" + ("" if scale == 1 else f" x{_power(scale)}")
+            cols.append(Column(key, header, scale))
+    return cols
+
+
+def _power(scale: float) -> str:
+    exponent = round(math.log10(scale))
+    return "10" if exponent == 1 else f"1e{exponent}"
+
+
+def _aggregate(rows: list[dict]) -> tuple[dict[str, float], dict[str, list[str]]]:
+    """Mean over clips of each key, leaving out (and listing) clips where the value is NaN."""
+    means, undefined = {}, {}
+    for key in suite.KEYS:
+        values = np.array([row[key] for row in rows], dtype=np.float64)
+        defined = np.isfinite(values)
+        means[key] = float(values[defined].mean()) if defined.any() else math.nan
+        if not defined.all():
+            undefined[key] = [row["clip"] for row, ok in zip(rows, defined) if not ok]
+    return means, undefined
+
+
+def _undefined_notes(undefined: dict[str, list[str]], n_scored: int) -> list[str]:
+    notes = []
+    for key, clips in undefined.items():
+        name = key.rsplit("_", 1)[0]
+        reason = UNDEFINED_REASONS.get(name, "not a finite number")
+        shown = ", ".join(clips[:3]) + (", …" if len(clips) > 3 else "")
+        notes.append(f"{key} undefined for {len(clips)} of {n_scored} clips ({reason}: {shown}); "
+                     f"its mean is over the other clips")
+    return notes
+
+
+def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], inputs: dict) -> ScoreReport:
+    rows, excluded, truncated = [], [], []
+    for outcome in map_items(_score_job, jobs_list, jobs=jobs, desc="dualtalk"):
+        if outcome.error is not None:
+            raise InputError(*outcome.error)
+        if len(set(outcome.frames.values())) > 1:
+            truncated.append({"clip": outcome.stem, **outcome.frames, "used": min(outcome.frames.values())})
+        if outcome.excluded is not None:
+            excluded.append({"clip": outcome.stem, "reason": outcome.excluded})
+        else:
+            rows.append({"clip": outcome.stem, **outcome.metrics})
+    if not rows:
+        reasons = "; ".join(f"{e['clip']}: {e['reason']}" for e in excluded[:5])
+        raise InputError(inputs.get("pred"), f"no prediction could be scored ({reasons})")
+    metrics, undefined = _aggregate(rows)
+    present = {job.stem for job in jobs_list}
+    notes = _undefined_notes(undefined, len(rows))
+    if truncated:
+        notes.append(f"{len(truncated)} clip(s) truncated to the shortest of prediction, ground truth and "
+                     f"partner lengths (listed under coverage.truncated)")
+    return ScoreReport(
+        suite=SUITE,
+        metrics=metrics,
+        scaled={k: v * suite.SCALE[k] for k, v in metrics.items()},
+        per_item=rows,
+        excluded=excluded,
+        coverage={"expected": len(expected), "scored": len(rows),
+                  "missing": [s for s in expected if s not in present], "extra": [],
+                  "truncated": truncated, "undefined": undefined},
+        config=_config(seed, jobs, inputs),
+        notes=notes,
+        columns=columns(),
+    )
+
+
+def _config(seed: int, jobs: int, inputs: dict) -> dict:
+    return {
+        "suite": SUITE,
+        **inputs,
+        "seed": seed,
+        "diversity_seed_rule": DIVERSITY_SEED_RULE,
+        "diversity_times": suite.DIVERSITY_TIMES,
+        "sid_k": dict(suite.SID_K),
+        "kmeans": 'sklearn.cluster.KMeans(n_clusters=k, random_state=0, n_init="auto")',
+        "min_frames": suite.MIN_FRAMES,
+        "truncation": "each clip cut to the shortest of prediction, ground truth and partner",
+        "aggregation": "plain mean over clips (a clip whose value is undefined is left out of that "
+                       "key's mean and listed under coverage.undefined)",
+        "higher_is_better": dict(suite.HIGHER_IS_BETTER),
+        "jobs": jobs,
+        "threads_per_job": THREADS_PER_JOB,
+        "versions": {"numpy": np.__version__, "scipy": scipy.__version__, "scikit-learn": sklearn.__version__},
+    }
+
+
+def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> ScoreReport:
+    """Score in-memory predictions: each item's ``pred``, ``gt`` and ``partner`` are (T, 56).
+
+    A missing partner or a wrong shape raises :class:`InputError` naming the item; NaN/inf
+    predictions are excluded and listed; length mismatches are truncated and counted.
+    """
+    if not items:
+        raise InputError(None, "no items to score")
+    stems = [item.stem for item in items]
+    duplicated = sorted({s for s in stems if stems.count(s) > 1})
+    if duplicated:
+        raise InputError(None, f"duplicate item stems: {', '.join(duplicated)}")
+    for item in items:
+        if item.partner is None:
+            raise InputError(item.stem, "the DualTalk suite needs the partner's ground truth (partner=None)")
+    jobs_list = [_Job(item.stem, derive_seed(seed, item.stem), item.pred, item.gt, item.partner)
+                 for item in items]
+    return _run(jobs_list, jobs=jobs, seed=seed, expected=stems, inputs={"pred": "in-memory", "gt": "in-memory"})
+
+
+def partner_stem(stem: str, source: str | None = None) -> str:
+    """``<clip>_speaker1`` <-> ``<clip>_speaker2``; other names raise :class:`InputError` (naming
+    ``source``, default the stem)."""
+    match = AGENT_STEM.match(stem)
+    if match is None:
+        raise InputError(source or stem, "DualTalk agent names are <clip>_speaker1 or <clip>_speaker2")
+    return f"{match['clip']}_speaker{3 - int(match['k'])}"
+
+
+def ground_truth_stems(gt_dir: Path) -> list[str]:
+    """Agent stems with a ground-truth ``.npz`` in a DualTalk split folder (wavs ignored)."""
+    if not gt_dir.is_dir():
+        raise InputError(gt_dir, "ground truth must be a DualTalk split folder")
+    stems = sorted(f.stem for f in gt_dir.glob("*.npz") if AGENT_STEM.match(f.stem))
+    if not stems:
+        raise InputError(gt_dir, "no DualTalk ground truth (<clip>_speaker1.npz / <clip>_speaker2.npz) here")
+    return stems
+
+
+def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,
+                seed: int = 0) -> ScoreReport:
+    """Score a prediction folder (``<clip>_speakerK.npy``) or ``.npz`` against a DualTalk split folder.
+
+    ``gt`` is the split folder itself, or the DualTalk root when ``split`` names its sub-folder.
+    Every prediction needs its own ground truth and its partner's (``_speaker1`` <-> ``_speaker2``);
+    a missing one raises :class:`InputError` naming the file. Coverage is reported against every
+    agent with ground truth in the folder.
+    """
+    gt_dir = Path(gt) / split if split else Path(gt)
+    expected = ground_truth_stems(gt_dir)
+    predictions = open_predictions(pred)
+    jobs_list = []
+    for stem, prediction in predictions.items():
+        own = gt_dir / f"{stem}.npz"
+        partner = gt_dir / f"{partner_stem(stem, prediction.name)}.npz"
+        for path, role in ((own, "ground truth"), (partner, "partner ground truth")):
+            if not path.is_file():
+                raise InputError(path, f"{role} of prediction {prediction.name} not found")
+        jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, own, partner))
+    return _run(jobs_list, jobs=jobs, seed=seed, expected=expected,
+                inputs={"pred": str(pred), "gt": str(gt_dir)})
