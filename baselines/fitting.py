@@ -1,0 +1,103 @@
+"""Fitting baselines on a train split, with fitted statistics cached by the split's digest.
+
+:func:`source_digest` identifies a split: for a split read from disk, the relative paths, sizes and
+modification times of its files; for an in-memory split, the bytes of every clip. :func:`cached_fit`
+stores what a baseline fitted as ``<cache>/baselines/<kind>-v<version>-<digest>.npz`` and reuses it
+while the split is unchanged. :func:`frame_statistics` computes the statistics of the trivial
+baselines over every frame of every participant of the split.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+from tqdm import tqdm
+
+from dyadbench import atomic
+from dyadbench.datasets.base import ClipSource
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.paths import cache_dir
+
+MEDIAN_MAX_FRAMES = 200_000  # the median is taken over every k-th frame, k chosen to keep at most this many
+
+
+def source_digest(source: ClipSource) -> str:
+    """sha256 hex digest identifying a split (see module docstring)."""
+    own = getattr(source, "digest", None)
+    if callable(own):
+        return str(own())
+    h = hashlib.sha256(f"{source.dataset}\x1f{source.split}".encode())
+    root = Path(source.root) if source.root else None
+    if root is not None and root.is_dir():
+        for path in sorted(p for p in root.rglob("*") if p.is_file()):
+            st = path.stat()
+            h.update(f"{path.relative_to(root)}\x1f{st.st_size}\x1f{st.st_mtime_ns}\n".encode())
+        return h.hexdigest()
+    for clip in source:
+        h.update(f"{clip.clip_id}\x1f{clip.fps}\x1f{clip.sample_rate}\x1f{clip.layout}".encode())
+        for p in clip.participants:
+            h.update(p.name.encode())
+            h.update(np.ascontiguousarray(p.motion).tobytes())
+            h.update(np.ascontiguousarray(p.audio).tobytes())
+    return h.hexdigest()
+
+
+def open_train(train_split: Callable[[], ClipSource] | None, model: str) -> ClipSource:
+    """The train split of a baseline's options, or a ConfigError saying the baseline needs one."""
+    if train_split is None:
+        raise ConfigError(f"{model} is fitted on a train split; pass ModelOptions(train_split=...)")
+    source = train_split()
+    if len(source) == 0:
+        raise InputError(f"{source.dataset}/{source.split}", f"{model}: the train split has no clips")
+    return source
+
+
+def cached_fit(kind: str, version: int, source: ClipSource,
+               fit: Callable[[ClipSource], dict[str, np.ndarray]]) -> tuple[dict[str, np.ndarray], str]:
+    """``fit(source)`` cached on disk; returns (arrays, sha256 of the cached file)."""
+    path = cache_dir() / "baselines" / f"{kind}-v{version}-{source_digest(source)[:20]}.npz"
+    if not path.is_file():
+        atomic.save_npz(path, **fit(source))
+    with np.load(path) as data:
+        arrays = {k: data[k] for k in data.files}
+    return arrays, hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+def frame_statistics(source: ClipSource) -> dict[str, np.ndarray]:
+    """Mean, covariance (ddof=1) and median of all frames of all participants of ``source``.
+
+    Mean and covariance are exact (float64 running sums). The median is the per-dimension median of
+    every k-th frame of each participant, k = ceil(estimated frames / MEDIAN_MAX_FRAMES) (k = 1 for
+    splits of up to 200,000 frames), so memory stays bounded on DualTalk-sized splits.
+    """
+    ids = source.clip_ids()
+    stride = None
+    total = 0
+    sums = sumsq = None
+    kept: list[np.ndarray] = []
+    for clip_id in tqdm(ids, desc=f"fitting on {source.dataset}/{source.split}", unit="clip", leave=False):
+        clip = source.load(clip_id)
+        for p in clip.participants:
+            m = np.asarray(p.motion, dtype=np.float64)
+            if stride is None:
+                estimate = len(ids) * len(clip.participants) * max(m.shape[0], 1)
+                stride = max(1, math.ceil(estimate / MEDIAN_MAX_FRAMES))
+                sums = np.zeros(m.shape[1])
+                sumsq = np.zeros((m.shape[1], m.shape[1]))
+            if m.shape[1] != sums.shape[0]:
+                raise InputError(f"{clip.clip_id}_{p.name}", f"motion has {m.shape[1]} dims, "
+                                                            f"other clips of the split have {sums.shape[0]}")
+            total += m.shape[0]
+            sums += m.sum(axis=0)
+            sumsq += m.T @ m
+            kept.append(m[::stride].astype(np.float32))
+    if total < 2:
+        raise InputError(f"{source.dataset}/{source.split}", "fewer than 2 frames in the train split")
+    mean = sums / total
+    cov = (sumsq - total * np.outer(mean, mean)) / (total - 1)
+    return {"mean": mean, "cov": (cov + cov.T) / 2, "median": np.median(np.concatenate(kept), axis=0),
+            "frames": np.array(total), "median_stride": np.array(stride)}

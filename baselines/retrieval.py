@@ -1,0 +1,147 @@
+"""Nearest-neighbour retrieval: the agent motion of the train turn whose partner behaved most alike.
+
+Index (fitted on the train split, cached by its digest): every whole turn of both directions of up to
+``MAX_TRAIN_CLIPS`` train clips (evenly spaced over the sorted clip ids). A turn is described by its
+partner's behaviour in that turn only:
+
+- partner motion: per-dimension mean and standard deviation over the turn's frames (2·D values);
+- partner speech: mean and standard deviation over the turn's frames of the 40-band log-mel features
+  of the turn's audio (:func:`dyadbench.features.logmel.logmel_frames`; 80 values).
+
+Each feature is standardised with the index's mean and standard deviation, the motion and the speech
+block are each divided by √(block size) so both weigh the same, and the result is projected on its
+first ``PCA_DIMS`` principal axes. An exact k-d tree (:class:`scipy.spatial.cKDTree`) over the index
+gives the nearest train turn (Euclidean); the model outputs that turn's agent motion. Every output turn
+is therefore real train motion, chosen by what the partner did in the current turn only (no history).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial import cKDTree
+from tqdm import tqdm
+
+from baselines.fitting import cached_fit, open_train
+from dyadbench.datasets.base import ClipSource
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.features.logmel import logmel_frames
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import (ModelInfo, ModelOptions, OfflineModel, StreamContext, StreamingModel,
+                                          TurnInput)
+
+FIT_VERSION = 1
+MAX_TRAIN_CLIPS = 256
+PCA_DIMS = 24
+N_MELS = 40
+
+
+def partner_features(user_motion: np.ndarray, user_audio: np.ndarray, sample_rate: int, fps: float) -> np.ndarray:
+    """Raw features of K turns: user_motion (K, F, D), user_audio (K, S) -> (K, 2·D + 2·N_MELS)."""
+    mels = np.stack([logmel_frames(a, sample_rate, fps, n_mels=N_MELS) for a in user_audio])
+    return np.concatenate([user_motion.mean(axis=1), user_motion.std(axis=1),
+                           mels.mean(axis=1), mels.std(axis=1)], axis=1).astype(np.float64)
+
+
+def _turns(array: np.ndarray, num_turns: int, per_turn: int) -> np.ndarray:
+    """(num_turns, per_turn, ...) view of the first num_turns·per_turn rows, zero-padded if short."""
+    need = num_turns * per_turn
+    if array.shape[0] < need:
+        array = np.concatenate([array, np.zeros((need - array.shape[0],) + array.shape[1:], array.dtype)])
+    return array[:need].reshape((num_turns, per_turn) + array.shape[1:])
+
+
+def build_index(source: ClipSource, turn_seconds: float) -> dict[str, np.ndarray]:
+    """Fit the retrieval index on ``source`` (see module docstring)."""
+    ids = source.clip_ids()
+    chosen = ids[::max(1, math.ceil(len(ids) / MAX_TRAIN_CLIPS))]
+    config = ProtocolConfig(turn_seconds=turn_seconds, context=0)
+    features, targets = [], []
+    fps = sample_rate = None
+    for clip_id in tqdm(chosen, desc="building retrieval index", unit="clip", leave=False):
+        clip = source.load(clip_id)
+        if len(clip.participants) != 2:
+            raise InputError(clip_id, "nn-retrieval needs two-participant clips (partner features)")
+        fps, sample_rate = clip.fps, clip.sample_rate
+        F, S = config.frames_per_turn(fps), config.samples_per_turn(sample_rate)
+        K = clip.num_frames // F
+        if K == 0:
+            continue
+        for agent in clip.participants:
+            user = clip.partner_of(agent.name)
+            features.append(partner_features(_turns(np.asarray(user.motion, np.float64), K, F),
+                                             _turns(np.asarray(user.audio, np.float32), K, S), sample_rate, fps))
+            targets.append(_turns(np.asarray(agent.motion, np.float32), K, F))
+    if not features:
+        raise InputError(f"{source.dataset}/{source.split}", "no whole turns in the train clips")
+    raw = np.concatenate(features)
+    mean, std = raw.mean(axis=0), raw.std(axis=0)
+    std[std < 1e-8] = 1.0
+    motion_dims = raw.shape[1] - 2 * N_MELS
+    weights = np.concatenate([np.full(motion_dims, 1 / math.sqrt(motion_dims)),
+                              np.full(2 * N_MELS, 1 / math.sqrt(2 * N_MELS))])
+    z = (raw - mean) / std * weights
+    _, _, vt = np.linalg.svd(z - z.mean(axis=0), full_matrices=False)
+    axes = vt[:min(PCA_DIMS, vt.shape[0])]
+    return {"feat_mean": mean, "feat_std": std, "weights": weights, "z_mean": z.mean(axis=0), "axes": axes,
+            "points": (z - z.mean(axis=0)) @ axes.T, "targets": np.concatenate(targets),
+            "fps": np.array(fps), "sample_rate": np.array(sample_rate), "clips": np.array(len(chosen))}
+
+
+class NearestTurnRetrieval(StreamingModel, OfflineModel):
+    """Output the agent motion of the nearest train turn by partner features (see module docstring)."""
+
+    def __init__(self, info: ModelInfo, index: dict[str, np.ndarray]):
+        self.info = info
+        self.index = index
+        self.tree = cKDTree(index["points"])
+        self.frames_per_turn = index["targets"].shape[1]
+        self._where = "stream"
+
+    def _project(self, raw: np.ndarray) -> np.ndarray:
+        ix = self.index
+        return ((raw - ix["feat_mean"]) / ix["feat_std"] * ix["weights"] - ix["z_mean"]) @ ix["axes"].T
+
+    def _check(self, ctx: StreamContext) -> None:
+        if ctx.user is None:
+            raise InputError(f"{ctx.clip_id}_{ctx.agent}", "nn-retrieval needs a partner; this session has none")
+        if (ctx.frames_per_turn != self.frames_per_turn or ctx.fps != float(self.index["fps"])
+                or ctx.sample_rate != int(self.index["sample_rate"])):
+            raise ConfigError(f"nn-retrieval index was built for {self.frames_per_turn}-frame turns at "
+                              f"{float(self.index['fps'])} fps / {int(self.index['sample_rate'])} Hz; the stream "
+                              f"has {ctx.frames_per_turn}-frame turns at {ctx.fps} fps / {ctx.sample_rate} Hz")
+
+    def _retrieve(self, user_motion: np.ndarray, user_audio: np.ndarray, sample_rate: int, fps: float) -> np.ndarray:
+        raw = partner_features(user_motion.astype(np.float64), user_audio, sample_rate, fps)
+        _, nearest = self.tree.query(self._project(raw), k=1)
+        return self.index["targets"][nearest]
+
+    def start_stream(self, ctx: StreamContext) -> None:
+        self._check(ctx)
+        self._sr, self._fps = ctx.sample_rate, ctx.fps
+
+    def predict_turn(self, turn: TurnInput) -> np.ndarray:
+        return self._retrieve(turn.current_user_motion[None], turn.current_user_audio[None], self._sr, self._fps)[0]
+
+    def predict_clip(self, ctx: StreamContext, user_motion: np.ndarray, user_audio: np.ndarray,
+                     agent_audio: np.ndarray) -> np.ndarray:
+        self._check(ctx)
+        K, F = ctx.num_turns, ctx.frames_per_turn
+        turns = self._retrieve(_turns(user_motion, K, F), _turns(user_audio, K, ctx.samples_per_turn),
+                               ctx.sample_rate, ctx.fps).reshape(K * F, -1)
+        tail = user_motion.shape[0] - K * F
+        return np.concatenate([turns, np.repeat(turns[-1:], tail, axis=0)]) if tail else turns
+
+
+def build_nn_retrieval(options: ModelOptions) -> NearestTurnRetrieval:
+    source = open_train(options.train_split, "nn-retrieval")
+    turn_seconds = float(options.extra.get("turn_seconds", 1.0))
+    index, digest = cached_fit(f"nn-retrieval-t{turn_seconds:g}", FIT_VERSION, source,
+                               lambda src: build_index(src, turn_seconds))
+    info = ModelInfo(name="nn-retrieval", layout=options.extra.get("layout", "flame56"), version=str(FIT_VERSION),
+                     weights_digest=digest,
+                     config={"train": f"{source.dataset}/{source.split}", "index_clips": int(index["clips"]),
+                             "index_turns": int(index["points"].shape[0]), "pca_dims": int(index["axes"].shape[0]),
+                             "turn_seconds": turn_seconds})
+    return NearestTurnRetrieval(info, index)

@@ -1,0 +1,149 @@
+"""``dyadbench eval``: run one model through the streaming protocol over a split and score it."""
+
+from __future__ import annotations
+
+import functools
+import io
+import math
+from pathlib import Path
+from typing import Callable
+
+import click
+
+from dyadbench import atomic
+from dyadbench.datasets.base import ClipSource
+from dyadbench.errors import ConfigError
+from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
+from dyadbench.protocol.interface import ModelOptions
+from dyadbench.registry import DATASETS, MODELS
+from dyadbench.results import EvalResult
+
+EMBEDDED = "synthetic"
+
+
+def data_options(f: Callable) -> Callable:
+    """--data / --dataset / --clips / --jobs, shared by ``eval`` and ``sweep``."""
+    options = [
+        click.option("--data", "data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
+                     help="Dataset root (e.g. a DualTalk folder holding train/ test/ ood/). Without it the "
+                          "embedded synthetic corpus is used (generated into the cache on first use)."),
+        click.option("--dataset", default=None, type=click.Choice(DATASETS.names()),
+                     help="Dataset adapter. Default: 'synthetic' without --data, 'dualtalk' with --data."),
+        click.option("--clips", default=None, type=click.IntRange(min=1),
+                     help="Only the first N clips of the split (sorted ids), for quick runs."),
+        click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
+                     help="Worker processes for streaming clips and for scoring."),
+    ]
+    return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
+
+
+def protocol_options(f: Callable) -> Callable:
+    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights."""
+    options = [
+        click.option("--turn-seconds", default=1.0, show_default=True, type=float,
+                     help="Turn length in seconds (must hold whole frames and samples; 1 s = 25 frames)."),
+        click.option("--tail", default="truncate", show_default=True, type=click.Choice(TAILS),
+                     help="Frames after the last whole turn: truncate (published TIMAR numbers) or "
+                          "pad-last (repeat the last predicted frame)."),
+        click.option("--history-agent", default="masked", show_default=True, type=click.Choice(HISTORY_AGENT),
+                     help="Agent motion in history turns: masked (TIMAR's published runs) or the model's "
+                          "own earlier outputs."),
+        click.option("--seed", default=0, show_default=True, type=int,
+                     help="Run seed: per-stream model seeds derive from (seed, clip, agent); also seeds the "
+                          "randomised metrics. Recorded in the result."),
+        click.option("--cfg-scale", default=1.0, show_default=True, type=float,
+                     help="Classifier-free guidance scale for models that support it (1 = off)."),
+        click.option("--weights", default=None, type=click.Path(exists=True, dir_okay=False, path_type=Path),
+                     help="Checkpoint for models with weights (default: the model's shipped checkpoint)."),
+    ]
+    return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
+
+
+def resolve_dataset(data: Path | None, dataset: str | None) -> str:
+    name = dataset or ("dualtalk" if data is not None else EMBEDDED)
+    if data is None and name not in (EMBEDDED, "synthetic-gaze"):
+        raise ConfigError(f"--dataset {name} needs --data DIR (only the embedded corpora need none)")
+    return name
+
+
+def open_splits(data: Path | None, dataset: str, split: str) -> tuple[ClipSource, Callable[[], ClipSource]]:
+    """The evaluated split and a picklable opener of the same dataset's train split."""
+    from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415  (keeps --help light)
+
+    if data is None:
+        click.echo(f"using the embedded {dataset} corpus ({DATASETS.get(dataset).target}); "
+                   f"pass --data DIR for a dataset on disk", err=True)
+    source = open_dataset_split(dataset, data, split)
+    return source, functools.partial(open_dataset_split, dataset, data, "train")
+
+
+def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
+            cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
+            predictions_dir: Path | None) -> EvalResult:
+    from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
+
+    options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train)
+    return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
+                    predictions_dir=predictions_dir)
+
+
+def summary(result: EvalResult) -> str:
+    """Coverage line and a metric / raw / scaled table in the suite's column order."""
+    lines = [f"[{result.suite}] {result.model.name}{' (ORACLE)' if result.model.oracle else ''} on "
+             f"{result.data.dataset}/{result.data.split}, {result.protocol.name} n={result.protocol.context}: "
+             f"{len(result.per_clip)} of {result.data.items} predictions scored"
+             + (f", {len(result.excluded)} excluded" if result.excluded else ""),
+             f"wall {result.timing.wall_s:.1f} s, mean per-turn latency "
+             f"{result.timing.mean_turn_latency_s * 1e3:.3f} ms over {result.timing.turns} turns"]
+    keys = list(result.scaling) or list(result.metrics)
+    width = max(len(k) for k in keys)
+    lines.append(f"{'metric'.ljust(width)}  {'raw':>12}  {'scaled':>12}")
+    for k in keys:
+        lines.append(f"{k.ljust(width)}  {_num(result.metrics.get(k)):>12}  {_num(result.scaled.get(k)):>12}")
+    return "\n".join(lines)
+
+
+def _num(v: float | None) -> str:
+    return "nan" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{v:.6g}"
+
+
+def write_per_clip(result: EvalResult, path: Path) -> Path:
+    buf = io.StringIO()
+    result.per_clip_frame().to_csv(buf, index=False, float_format="%.10g")
+    return atomic.write_text(path, buf.getvalue())
+
+
+@click.command("eval")
+@click.option("--model", "model", required=True, help=f"Registered model ({', '.join(MODELS.names())}).")
+@click.option("--split", default="test", show_default=True, help="Split to evaluate: train, test or ood.")
+@click.option("--context", "-n", default=7, show_default=True, type=click.IntRange(min=0),
+              help="History turns n given with the current turn (0 = none; TIMAR's main results use 7).")
+@protocol_options
+@data_options
+@click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Output folder: predictions/<clip>_speakerK.npy, result.json, per_clip.csv "
+                   "[default: runs/<model>_<dataset>_<split>_n<context>].")
+def eval_command(model: str, split: str, context: int, turn_seconds: float, tail: str, history_agent: str,
+                 seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
+                 clips: int | None, jobs: int, out: Path | None) -> None:
+    """Run MODEL through the progressive-context streaming protocol over one split and score it.
+
+    \b
+    Both directions of every clip are generated (speaker1 given speaker2, and the reverse), written
+    in the DualTalk/TIMAR prediction layout (so `dyadbench score OUT/predictions --gt <split folder>`
+    reproduces the numbers) and scored with the suite of the motion layout (flame56: DualTalk/TIMAR;
+    gaze7: gaze-head). Example:
+      dyadbench eval --model mean-frame --split test --context 7 --clips 20
+    """
+    MODELS.get(model)
+    config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
+                            seed=seed)
+    name = resolve_dataset(data, dataset)
+    source, train = open_splits(data, name, split)
+    out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
+    result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips, jobs=jobs,
+                     predictions_dir=out / "predictions")
+    result_path = result.write(out / "result.json")
+    csv_path = write_per_clip(result, out / "per_clip.csv")
+    click.echo(summary(result))
+    click.echo(f"wrote {out / 'predictions'}/ ({result.data.items} files), {result_path} and {csv_path}")

@@ -1,0 +1,173 @@
+"""Leaderboards built only from result files (and transcribed published rows).
+
+- :func:`long_table`: one row per source / model / dataset / split / protocol / context / metric, with
+  raw and publication-scaled values, the scale factor, ``higher_is_better``, the oracle flag and where
+  the number comes from (``source = dyadbench`` with its result file, or ``source = paper`` with the
+  table it was transcribed from).
+- :func:`wide_table`: the paper layout of one suite (DualTalk/TIMAR: FD, P-FD, MSE, SID, rPCC for
+  exp/jaw/pose, scaled as printed), one row per model and setting, with ``rank`` by the first column
+  among non-oracle rows of the same source/dataset/split/protocol/context. Oracle rows are kept, marked
+  and never ranked.
+- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold).
+
+Published rows are stored as printed (scaled) in a CSV with columns ``source, reference, model,
+dataset, split, protocol, context`` and one column per metric key (e.g. ``leaderboards/paper_timar.csv``);
+their raw values are the printed values divided by the scale.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+from pathlib import Path
+from typing import Iterable
+
+import numpy as np
+import pandas as pd
+
+from dyadbench.errors import InputError
+from dyadbench.motion import LAYOUTS
+from dyadbench.results import results_frame
+
+SETTING = ["source", "dataset", "split", "protocol", "context"]
+LONG_COLUMNS = ["source", "model", "oracle", "dataset", "split", "protocol", "context", "suite", "metric",
+                "component", "raw", "scaled", "scale", "higher_is_better", "items", "seed", "tail",
+                "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
+_COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
+
+
+def suite_info(suite: str) -> tuple[list[str], dict[str, float], dict[str, bool | None]]:
+    """(paper columns in order, scale per key, higher_is_better per key) of a suite; empty if unknown."""
+    if suite == "dualtalk":
+        m = importlib.import_module("dyadbench.metrics.dualtalk")
+        keys = [k for name in m.PAPER_ORDER if m.METRIC_INFO[name].in_paper for k in m.METRIC_INFO[name].keys()]
+        return keys, dict(m.SCALE), dict(m.HIGHER_IS_BETTER)
+    return [], {}, {}
+
+
+def _component(metric: str) -> str:
+    tail = metric.rsplit("_", 1)[-1]
+    return tail if tail in _COMPONENTS else ""
+
+
+def paper_rows(path: str | Path, suite: str = "dualtalk") -> pd.DataFrame:
+    """Long rows of a transcribed published table (see module docstring)."""
+    path = Path(path)
+    try:
+        wide = pd.read_csv(path, dtype={"context": "Int64"}, keep_default_na=True)
+    except (OSError, ValueError) as exc:
+        raise InputError(path, f"not a readable published-rows CSV ({exc})") from None
+    needed = {"source", "reference", "model", "dataset", "split", "protocol", "context"}
+    if not needed <= set(wide.columns):
+        raise InputError(path, f"missing columns {', '.join(sorted(needed - set(wide.columns)))}")
+    _, scale, better = suite_info(suite)
+    metrics = [c for c in wide.columns if c not in needed]
+    unknown = [m for m in metrics if m not in scale]
+    if unknown:
+        raise InputError(path, f"unknown {suite} metric columns: {', '.join(unknown)}")
+    rows = []
+    for _, r in wide.iterrows():
+        for metric in metrics:
+            value = float(r[metric])
+            rows.append({"source": r["source"], "model": r["model"], "oracle": False, "dataset": r["dataset"],
+                         "split": r["split"], "protocol": r["protocol"],
+                         "context": None if pd.isna(r["context"]) else int(r["context"]), "suite": suite,
+                         "metric": metric, "component": _component(metric), "raw": value / scale[metric],
+                         "scaled": value, "scale": scale[metric], "higher_is_better": better.get(metric),
+                         "reference": f"{r['reference']} ({path.name})"})
+    return pd.DataFrame(rows)
+
+
+def long_table(result_paths: Iterable[str | Path], paper: Iterable[str | Path] = ()) -> pd.DataFrame:
+    """The long leaderboard from result files/folders and published-rows CSVs."""
+    frame = results_frame(result_paths)
+    _reject_duplicates(frame)
+    frame = frame.assign(source="dyadbench", reference=frame["file"], component=frame["metric"].map(_component))
+    frame["higher_is_better"] = [suite_info(s)[2].get(m) for s, m in zip(frame["suite"], frame["metric"])]
+    parts = [frame] + [paper_rows(p) for p in paper]
+    parts = [p for p in parts if not p.empty]
+    if not parts:
+        return pd.DataFrame(columns=LONG_COLUMNS)
+    out = pd.concat(parts, ignore_index=True).reindex(columns=LONG_COLUMNS)
+    out["context"] = out["context"].astype("Int64")
+    out["oracle"] = out["oracle"].astype(bool)
+    return out.sort_values(["suite", "dataset", "split", "protocol", "context", "source", "oracle", "model",
+                            "metric"], kind="stable").reset_index(drop=True)
+
+
+def _reject_duplicates(frame: pd.DataFrame) -> None:
+    key = ["model", "dataset", "split", "protocol", "context", "turn_seconds", "tail", "history_agent",
+           "cfg_scale", "seed", "metric"]
+    dup = frame[frame.duplicated(key, keep=False)]
+    if not dup.empty:
+        files = sorted(set(dup["file"]))
+        raise InputError(files[0], f"the same run appears in several result files: {', '.join(files)}")
+
+
+def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
+    """The paper-layout table of one suite from the long table (scaled values; see module docstring)."""
+    part = long[long["suite"] == suite]
+    columns, _, better = suite_info(suite)
+    if not columns:
+        columns = list(dict.fromkeys(part["metric"]))
+    index = SETTING + ["model", "oracle"]
+    if part.empty:
+        return pd.DataFrame(columns=index + ["rank"] + columns)
+    part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""))
+    wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
+    wide = wide.reindex(columns=index + columns)
+    first = columns[0]
+    ascending = not bool(better.get(first, False))
+    wide["rank"] = pd.array([pd.NA] * len(wide), dtype="Int64")
+    ranked = ~wide["oracle"].astype(bool)
+    wide.loc[ranked, "rank"] = (wide[ranked].groupby(SETTING)[first]
+                                .rank(method="min", ascending=ascending).astype("Int64"))
+    wide = wide.sort_values(SETTING + ["oracle", "rank", "model"], kind="stable", na_position="last")
+    return wide[index + ["rank"] + columns].reset_index(drop=True)
+
+
+def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) -> str:
+    """A LaTeX tabular of a wide table; best ranked value per column and group in bold, oracle marked."""
+    columns, scale, better = suite_info(suite)
+    columns = columns or [c for c in wide.columns if c not in SETTING + ["model", "oracle", "rank"]]
+    header = " & ".join(["Model"] + [_latex_header(c, scale.get(c, 1.0), better.get(c)) for c in columns])
+    lines = [r"\begin{tabular}{l" + "r" * len(columns) + "}", r"\toprule", header + r" \\", r"\midrule"]
+    for setting, group in wide.groupby(SETTING, sort=False):
+        source, dataset, split, protocol, context = setting
+        label = f"{dataset} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
+        lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{_escape(label)}}}}} \\")
+        best = {}
+        ranked = group[~group["oracle"].astype(bool)]
+        for c in columns:
+            values = ranked[c].astype(float)
+            if better.get(c) is not None and values.notna().any():
+                best[c] = values.max() if better[c] else values.min()
+        for _, row in group.iterrows():
+            name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "")
+            cells = [name]
+            for c in columns:
+                v = float(row[c]) if pd.notna(row[c]) else math.nan
+                text = "--" if math.isnan(v) else f"{v:.{digits}f}"
+                if c in best and not row["oracle"] and not math.isnan(v) and np.isclose(v, best[c]):
+                    text = rf"\textbf{{{text}}}"
+                cells.append(text)
+            lines.append(" & ".join(cells) + r" \\")
+        lines.append(r"\midrule")
+    lines[-1] = r"\bottomrule"
+    lines.append(r"\end{tabular}")
+    if wide["oracle"].astype(bool).any():
+        lines.append(r"% $^\dagger$ oracle: copies the ground truth; a pipeline check, never ranked.")
+    return "\n".join(lines) + "\n"
+
+
+def _latex_header(key: str, scale: float, higher: bool | None) -> str:
+    name, _, comp = key.rpartition("_")
+    arrow = "" if higher is None else (r"$\uparrow$" if higher else r"$\downarrow$")
+    factor = "" if scale == 1.0 else rf" $\times10^{{{int(round(math.log10(scale)))}}}$"
+    return f"{_escape(name.upper().replace('PFD', 'P-FD').replace('RPCC', 'rPCC'))}{arrow} {comp}{factor}"
+
+
+def _escape(text: str) -> str:
+    for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#")):
+        text = text.replace(a, b)
+    return text

@@ -1,0 +1,186 @@
+"""Run one model over one split: both directions of every clip, predictions written, then scored.
+
+:func:`evaluate` builds the model from :data:`dyadbench.registry.MODELS`, streams every direction of
+every clip through :func:`~dyadbench.protocol.streaming.stream_agent` (or the offline protocol for
+full-sequence models), writes each prediction as ``<clip>_<agent>.npy`` (T', D) float32 — the
+DualTalk/TIMAR prediction layout, so ``dyadbench score`` on the folder reproduces the numbers — and
+scores the same arrays with the suite of the motion layout (flame56: DualTalk/TIMAR suite; gaze7: the
+gaze–head suite). With ``jobs > 1`` clips are streamed in that many worker processes (started fresh,
+each building its own model from the same options) and the suite scores with ``jobs`` workers too.
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+import pickle
+import shutil
+import sys
+import tempfile
+import time
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+from tqdm import tqdm
+
+from dyadbench import atomic
+from dyadbench.datasets.base import ClipSource
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import ModelOptions, OfflineModel, StreamingModel
+from dyadbench.protocol.offline import run_offline
+from dyadbench.protocol.streaming import StreamOutput, stream_agent
+from dyadbench.registry import DATASETS, MODELS
+from dyadbench.results import (DataRecord, EvalResult, ModelRecord, ProtocolRecord, TimingRecord, environment,
+                               utc_now)
+from dyadbench.scoring.report import ScoreItem
+
+#: Metric suite of each motion layout (module dyadbench.scoring.<suite> provides score_arrays).
+SUITE_OF_LAYOUT = {"flame56": "dualtalk", "gaze7": "gaze"}
+
+
+def open_dataset_split(dataset: str, root: Path | None, split: str) -> ClipSource:
+    """``DATASETS[dataset](root, split)``: a picklable way to name a split (used as ``train_split``)."""
+    return DATASETS.load(dataset)(root, split)
+
+
+@dataclass(frozen=True)
+class _Streamed:
+    """What one direction of one clip produced, with what the suite needs to score it."""
+
+    output: StreamOutput
+    item: ScoreItem
+
+
+def build_model(name: str, options: ModelOptions) -> StreamingModel | OfflineModel:
+    model = MODELS.load(name)(options)
+    if not isinstance(model, (StreamingModel, OfflineModel)):
+        raise ConfigError(f"model {name!r} factory returned {type(model).__name__}, "
+                          f"not a StreamingModel or OfflineModel")
+    return model
+
+
+def run_direction(model: StreamingModel | OfflineModel, clip, agent: str, config: ProtocolConfig) -> StreamOutput:
+    """Streaming protocol for streaming models, offline protocol for full-sequence models."""
+    if isinstance(model, StreamingModel):
+        return stream_agent(model, clip, agent, config)
+    return run_offline(model, clip, agent, config)
+
+
+def _stream_clip(model, source: ClipSource, clip_id: str, config: ProtocolConfig, keep_audio: bool) -> list[_Streamed]:
+    clip = source.load(clip_id)
+    out = []
+    for p in clip.participants:
+        partner = clip.partner_of(p.name)
+        result = run_direction(model, clip, p.name, config)
+        out.append(_Streamed(result, ScoreItem(
+            stem=result.stem, pred=result.motion, gt=np.asarray(p.motion, np.float32),
+            partner=np.asarray(partner.motion, np.float32) if partner is not None else None,
+            audio=np.asarray(p.audio, np.float32) if keep_audio else None, identity=p.identity,
+            fps=clip.fps, sample_rate=clip.sample_rate)))
+    return out
+
+
+_WORKER: dict = {}
+
+
+def _init_worker(model_name: str, options: ModelOptions, source: ClipSource, config: ProtocolConfig,
+                 keep_audio: bool) -> None:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")  # workers share the machine: one thread each
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+    _WORKER.update(model=build_model(model_name, options), source=source, config=config, keep_audio=keep_audio)
+
+
+def _worker_clip(clip_id: str) -> list[_Streamed]:
+    w = _WORKER
+    return _stream_clip(w["model"], w["source"], clip_id, w["config"], w["keep_audio"])
+
+
+def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, options: ModelOptions | None = None,
+             clips: int | None = None, jobs: int = 1, predictions_dir: Path | None = None,
+             progress: bool = True) -> EvalResult:
+    """Run ``model_name`` over ``source`` under ``config`` and score it (see module docstring).
+
+    ``predictions_dir``: where ``<stem>.npy`` files go (None: a temporary folder, removed after scoring).
+    ``clips``: only the first N clips (sorted ids). The model's options get ``extra["layout"]`` and
+    ``extra["turn_seconds"]`` from the split and the protocol.
+    """
+    started = time.perf_counter()
+    ids = source.clip_ids()
+    if clips is not None:
+        if clips < 1:
+            raise ConfigError(f"clips must be >= 1, got {clips}")
+        ids = ids[:clips]
+    if not ids:
+        raise InputError(f"{source.dataset}/{source.split}", "the split has no clips")
+    layout = source.load(ids[0]).layout
+    if layout not in SUITE_OF_LAYOUT:
+        raise ConfigError(f"no metric suite for motion layout {layout!r}")
+    suite = SUITE_OF_LAYOUT[layout]
+    options = options or ModelOptions(seed=config.seed)
+    options = replace(options, extra={**options.extra, "layout": layout, "turn_seconds": config.turn_seconds})
+    model = build_model(model_name, options)
+    if model.info.layout != layout:
+        raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion; the split is {layout}")
+    keep_audio = suite == "gaze"
+
+    temporary = predictions_dir is None
+    pred_dir = Path(tempfile.mkdtemp(prefix="dyadbench-preds-")) if temporary else Path(predictions_dir)
+    pred_dir.mkdir(parents=True, exist_ok=True)
+    items: list[ScoreItem] = []
+    latencies: list[float] = []
+    protocol_name = "streaming" if isinstance(model, StreamingModel) else "offline"
+    try:
+        bar = tqdm(total=len(ids), desc=f"{model_name} {source.dataset}/{source.split} n={config.context}",
+                   unit="clip", disable=not progress)
+        for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs):
+            for s in streamed:
+                atomic.save_npy(pred_dir / f"{s.output.stem}.npy", s.output.motion.astype(np.float32))
+                items.append(s.item)
+                latencies.extend(s.output.turn_latency_s)
+            bar.update(1)
+        bar.close()
+        report = importlib.import_module(f"dyadbench.scoring.{suite}").score_arrays(
+            items, jobs=jobs, seed=config.seed)
+    finally:
+        if temporary:
+            shutil.rmtree(pred_dir, ignore_errors=True)
+
+    info = model.info
+    model_s = float(np.sum(latencies))
+    return EvalResult(
+        model=ModelRecord(name=info.name, version=info.version, weights_digest=info.weights_digest,
+                          weights_path=info.weights_path, oracle=bool(info.oracle), layout=info.layout,
+                          config=dict(info.config)),
+        data=DataRecord(dataset=source.dataset, split=source.split,
+                        root=str(source.root) if source.root else None, clips=len(ids), items=len(items)),
+        protocol=ProtocolRecord(name=protocol_name, turn_seconds=config.turn_seconds, context=config.context,
+                                tail=config.tail, history_agent=config.history_agent,
+                                cfg_scale=float(options.cfg_scale), seed=config.seed),
+        suite=suite, metrics=dict(report.metrics), scaled=dict(report.scaled),
+        scaling={c.key: c.scale for c in report.columns} or {k: 1.0 for k in report.metrics},
+        per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
+        notes=list(report.notes), predictions=None if temporary else str(pred_dir),
+        timing=TimingRecord(wall_s=time.perf_counter() - started, model_s=model_s, turns=len(latencies),
+                            mean_turn_latency_s=model_s / max(len(latencies), 1)),
+        environment=environment(), created_utc=utc_now())
+
+
+def _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs):
+    """Yield, clip by clip in order, the streamed directions (in-process or in ``jobs`` workers)."""
+    if jobs <= 1 or len(ids) == 1:
+        for clip_id in ids:
+            yield _stream_clip(model, source, clip_id, config, keep_audio)
+        return
+    try:
+        pickle.dumps((options, source))
+    except Exception as exc:
+        raise ConfigError(f"--jobs > 1 needs picklable model options and clip source ({exc}); "
+                          f"use jobs=1") from None
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"), initializer=_init_worker,
+                             initargs=(model_name, options, source, config, keep_audio)) as pool:
+        yield from pool.map(_worker_clip, ids, chunksize=max(1, min(16, len(ids) // (4 * jobs))))

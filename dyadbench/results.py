@@ -1,0 +1,239 @@
+"""Typed result files of ``dyadbench eval``: one JSON per model / dataset / split / protocol setting.
+
+A result records the model (name, version, weights digest, oracle flag, config), the data (dataset,
+split, root, number of clips and scored items), the protocol (streaming or offline, turn length, context
+n, tail, history-agent policy, guidance scale, seed), the metric suite with mean metrics raw and
+publication-scaled and the scale factors, per-clip raw metrics, coverage and exclusions, timing (wall
+clock, mean per-turn latency) and the environment (dyadbench, Python, NumPy, torch versions, git
+commit). :func:`load_result` reads one back and rejects malformed files with a message naming the file
+and the field; :func:`results_frame` loads many into a long :class:`pandas.DataFrame`, the only input
+of the leaderboards.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import platform
+import subprocess
+from dataclasses import asdict, dataclass, field, fields
+from datetime import datetime, timezone
+from importlib import metadata
+from pathlib import Path
+from typing import Iterable, get_type_hints
+
+import pandas as pd
+
+from dyadbench import __version__, atomic
+from dyadbench.errors import InputError
+
+SCHEMA = "dyadbench.eval-result/1"
+
+
+@dataclass(frozen=True)
+class ModelRecord:
+    name: str
+    version: str
+    weights_digest: str | None
+    weights_path: str | None
+    oracle: bool
+    layout: str
+    config: dict
+
+
+@dataclass(frozen=True)
+class DataRecord:
+    dataset: str
+    split: str
+    root: str | None
+    clips: int  # dialogues (or sessions) run
+    items: int  # evaluated directions (predictions written)
+
+
+@dataclass(frozen=True)
+class ProtocolRecord:
+    name: str  # "streaming" or "offline"
+    turn_seconds: float
+    context: int
+    tail: str
+    history_agent: str
+    cfg_scale: float
+    seed: int
+
+
+@dataclass(frozen=True)
+class TimingRecord:
+    wall_s: float
+    model_s: float  # summed time inside the model's calls
+    turns: int
+    mean_turn_latency_s: float
+
+
+@dataclass
+class EvalResult:
+    """One evaluation run (see module docstring). ``per_clip``: one dict of raw metrics per prediction."""
+
+    model: ModelRecord
+    data: DataRecord
+    protocol: ProtocolRecord
+    suite: str
+    metrics: dict[str, float]
+    scaled: dict[str, float]
+    scaling: dict[str, float]
+    per_clip: list[dict]
+    timing: TimingRecord
+    coverage: dict = field(default_factory=dict)
+    excluded: list[dict] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    predictions: str | None = None
+    environment: dict = field(default_factory=dict)
+    created_utc: str = ""
+    schema: str = SCHEMA
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        columns = list(self.per_clip[0]) if self.per_clip else []
+        d["per_clip"] = {"columns": columns, "rows": [[row.get(c) for c in columns] for row in self.per_clip]}
+        return {"schema": d.pop("schema"), **d}
+
+    def write(self, path: str | Path) -> Path:
+        """Write atomically as JSON."""
+        return atomic.write_json(path, self.to_dict())
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str | Path = "result") -> "EvalResult":
+        if not isinstance(d, dict):
+            raise InputError(source, "not a JSON object")
+        if d.get("schema") != SCHEMA:
+            raise InputError(source, f"not a dyadbench eval result (schema {d.get('schema')!r}, expected {SCHEMA!r})")
+        parts = {}
+        for key, record in (("model", ModelRecord), ("data", DataRecord), ("protocol", ProtocolRecord),
+                            ("timing", TimingRecord)):
+            parts[key] = _record(record, d.get(key), source, key)
+        for key in ("suite",):
+            if not isinstance(d.get(key), str):
+                raise InputError(source, f"field {key!r} missing or not a string")
+        for key in ("metrics", "scaled", "scaling"):
+            parts[key] = _numbers(d.get(key), source, key)
+        per_clip = d.get("per_clip")
+        if (not isinstance(per_clip, dict) or not isinstance(per_clip.get("columns"), list)
+                or not isinstance(per_clip.get("rows"), list)):
+            raise InputError(source, "field 'per_clip' must be {'columns': [...], 'rows': [[...], ...]}")
+        columns = per_clip["columns"]
+        rows = []
+        for i, row in enumerate(per_clip["rows"]):
+            if not isinstance(row, list) or len(row) != len(columns):
+                raise InputError(source, f"per_clip row {i} does not have {len(columns)} values")
+            rows.append({c: (math.nan if v is None and c != "clip" else v) for c, v in zip(columns, row)})
+        return cls(suite=d["suite"], per_clip=rows, coverage=d.get("coverage") or {},
+                   excluded=d.get("excluded") or [], notes=d.get("notes") or [],
+                   predictions=d.get("predictions"), environment=d.get("environment") or {},
+                   created_utc=d.get("created_utc", ""), **parts)
+
+    def per_clip_frame(self) -> pd.DataFrame:
+        return pd.DataFrame(self.per_clip)
+
+
+def _record(record: type, value: object, source: str | Path, key: str):
+    if not isinstance(value, dict):
+        raise InputError(source, f"field {key!r} missing or not an object")
+    names = [f.name for f in fields(record)]
+    missing = [n for n in names if n not in value]
+    if missing:
+        raise InputError(source, f"field {key!r} lacks {', '.join(missing)}")
+    for name, hint in get_type_hints(record).items():
+        allowed = _ALLOWED[hint]
+        v = value[name]
+        if isinstance(v, bool) and bool not in allowed or not isinstance(v, allowed):
+            raise InputError(source, f"{key}.{name} has the wrong type ({type(v).__name__}: {v!r})")
+    return record(**{n: value[n] for n in names})
+
+
+_ALLOWED = {str: (str,), int: (int,), float: (int, float), bool: (bool,), dict: (dict,),
+            str | None: (str, type(None))}
+
+
+def _numbers(value: object, source: str | Path, key: str) -> dict[str, float]:
+    if not isinstance(value, dict):
+        raise InputError(source, f"field {key!r} missing or not an object")
+    out = {}
+    for k, v in value.items():
+        if v is None:
+            out[k] = math.nan
+        elif isinstance(v, (int, float)) and not isinstance(v, bool):
+            out[k] = float(v)
+        else:
+            raise InputError(source, f"{key}.{k} is not a number: {v!r}")
+    return out
+
+
+def load_result(path: str | Path) -> EvalResult:
+    """Read one result file; InputError naming the file for unreadable or malformed content."""
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise InputError(path, "result file not found") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise InputError(path, f"not readable JSON ({exc})") from None
+    return EvalResult.from_dict(data, path)
+
+
+def result_files(paths: Iterable[str | Path]) -> list[Path]:
+    """Expand folders to the ``*.json`` files below them (sorted); files are taken as given."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            out.extend(sorted(p.rglob("*.json")))
+        elif p.is_file():
+            out.append(p)
+        else:
+            raise InputError(p, "no such result file or folder")
+    return out
+
+
+RESULT_COLUMNS = ("model", "oracle", "dataset", "split", "protocol", "context", "turn_seconds", "tail",
+                  "history_agent", "cfg_scale", "seed", "suite", "metric", "raw", "scaled", "scale",
+                  "items", "weights_digest", "file")
+
+
+def results_frame(paths: Iterable[str | Path]) -> pd.DataFrame:
+    """Long table of mean metrics: one row per (result file, metric), columns :data:`RESULT_COLUMNS`."""
+    rows = []
+    for path in result_files(paths):
+        r = load_result(path)
+        for metric, raw in r.metrics.items():
+            rows.append({"model": r.model.name, "oracle": bool(r.model.oracle), "dataset": r.data.dataset,
+                         "split": r.data.split, "protocol": r.protocol.name, "context": r.protocol.context,
+                         "turn_seconds": r.protocol.turn_seconds, "tail": r.protocol.tail,
+                         "history_agent": r.protocol.history_agent, "cfg_scale": r.protocol.cfg_scale,
+                         "seed": r.protocol.seed, "suite": r.suite, "metric": metric, "raw": raw,
+                         "scaled": r.scaled.get(metric, math.nan), "scale": r.scaling.get(metric, 1.0),
+                         "items": r.data.items, "weights_digest": r.model.weights_digest, "file": str(path)})
+    return pd.DataFrame(rows, columns=list(RESULT_COLUMNS))
+
+
+def environment() -> dict:
+    """Versions recorded in every result (torch's version is read from its metadata, not imported)."""
+    def version(dist: str) -> str | None:
+        try:
+            return metadata.version(dist)
+        except metadata.PackageNotFoundError:
+            return None
+
+    return {"dyadbench": __version__, "python": platform.python_version(), "numpy": version("numpy"),
+            "torch": version("torch"), "platform": platform.platform(), "git": git_commit()}
+
+
+def git_commit() -> str | None:
+    """Commit hash of the dyadbench checkout, or None when not run from a git checkout."""
+    try:
+        out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=Path(__file__).resolve().parent,
+                             capture_output=True, text=True, timeout=10)
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return out.stdout.strip() or None if out.returncode == 0 else None
+
+
+def utc_now() -> str:
+    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")
