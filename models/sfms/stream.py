@@ -40,7 +40,7 @@ class SFMSStreamingModel(StreamingModel):
         if turn.user_motion.ndim != 2 or turn.user_motion.shape[1] != self.tok.cfg.dim:
             raise InputError(f"{ctx.clip_id}_{ctx.user}", f"partner motion must be (T, {self.tok.cfg.dim}), "
                                                          f"got {turn.user_motion.shape}")
-        motion = self.tok.normalise(torch.as_tensor(turn.user_motion, dtype=torch.float32))
+        motion = self.tok.normalise(torch.tensor(np.asarray(turn.user_motion), dtype=torch.float32))
         rows = speech_rows(np.asarray(turn.user_audio, np.float32), ctx.sample_rate, ctx.fps, cfg)
         need = n * cfg.audio_rows_per_frame
         rows = np.pad(rows[:need], ((0, max(need - rows.shape[0], 0)), (0, 0)))
