@@ -1,0 +1,255 @@
+"""`dyadbench score` with the DualTalk suite, end to end on small generated files."""
+
+import json
+import math
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from dyadbench.cli import main
+from dyadbench.datasets.dualtalk_files import load_gt_npz, write_gt_npz
+from dyadbench.errors import InputError
+from dyadbench.metrics.dualtalk import KEYS, SCALE, clip_metrics
+from dyadbench.scoring.dualtalk import score_arrays, score_paths
+from dyadbench.scoring.report import ScoreItem
+from dyadbench.seeding import derive_seed
+
+T = 110
+CLIPS = ("dlgA", "dlgB", "dlgC")
+DEMO = Path("/work/shared/data/dualtalk-demo")
+
+
+def _smooth(rng, t=T):
+    steps = rng.normal(size=(t, 56)) * np.r_[np.full(50, 0.1), np.full(6, 0.01)]
+    return np.cumsum(steps, axis=0) + rng.normal(size=56) * 0.3
+
+
+@pytest.fixture()
+def dataset(tmp_path):
+    """GT split folder (with wavs that must be ignored) and a prediction folder for every agent."""
+    rng = np.random.default_rng(0)
+    gt, pred = tmp_path / "gt", tmp_path / "pred"
+    gt.mkdir()
+    pred.mkdir()
+    for clip in CLIPS:
+        for k in (1, 2):
+            stem = f"{clip}_speaker{k}"
+            motion = _smooth(rng)
+            write_gt_npz(gt / f"{stem}.npz", motion, extra={"cam": np.zeros((T, 3), np.float32)})
+            (gt / f"{stem}.wav").write_bytes(b"RIFF")
+            np.save(pred / f"{stem}.npy", (motion + 0.2 * _smooth(rng)).astype(np.float32))
+    return gt, pred
+
+
+def run(capsys, *args):
+    """Run the real entry point; return (exit code, stdout, stderr)."""
+    try:
+        main(["score", *map(str, args)])
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def _results(out):
+    return json.loads((out / "results.json").read_text()), pd.read_csv(out / "per_clip.csv")
+
+
+def test_outputs_and_table(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    code, out, err = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res")
+    assert code == 0, err
+    assert "scored 6 of 6" in out
+    header = out.splitlines()[1]
+    assert header.split()[:4] == ["FD", "exp", "FD", "jaw"] and "x1e3" in header
+    assert header.index("P-FD") < header.index("MSE") < header.index("SID") < header.index("rPCC")
+    results, frame = _results(tmp_path / "res")
+    for key in ("metrics", "scaled", "n_scored", "excluded", "coverage", "config", "dyadbench_version",
+                "scaling"):
+        assert key in results
+    assert list(results["metrics"]) == list(KEYS)
+    assert results["n_scored"] == 6 and results["coverage"]["expected"] == 6
+    assert list(frame.columns) == ["clip", *KEYS]
+    assert list(frame["clip"]) == [f"{c}_speaker{k}" for c in CLIPS for k in (1, 2)]
+    # plain mean over clips, and publication scaling
+    for key in KEYS:
+        assert results["metrics"][key] == pytest.approx(frame[key].mean(), rel=1e-9)
+        assert results["scaled"][key] == pytest.approx(results["metrics"][key] * SCALE[key])
+    assert results["config"]["seed"] == 0 and "derive_seed(seed, stem)" in results["config"]["diversity_seed_rule"]
+
+
+def test_per_clip_values_are_the_metric_functions(dataset):
+    gt, pred = dataset
+    report = score_paths(pred, gt, seed=4)
+    stem = "dlgB_speaker2"
+    expected = clip_metrics(np.load(pred / f"{stem}.npy").astype(np.float64), load_gt_npz(gt / f"{stem}.npz"),
+                            load_gt_npz(gt / "dlgB_speaker1.npz"), seed=derive_seed(4, stem))
+    row = next(r for r in report.per_item if r["clip"] == stem)
+    assert {k: row[k] for k in KEYS} == expected
+
+
+def test_npz_input_and_arrays_and_jobs_give_identical_results(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    archive = tmp_path / "preds.npz"
+    np.savez(archive, **{f.stem: np.load(f) for f in sorted(pred.glob("*.npy"))})
+    assert run(capsys, pred, "--gt", gt, "--out", tmp_path / "a")[0] == 0
+    assert run(capsys, archive, "--gt", gt, "--out", tmp_path / "b", "--jobs", "2")[0] == 0
+    assert (tmp_path / "a" / "per_clip.csv").read_text() == (tmp_path / "b" / "per_clip.csv").read_text()
+    assert _results(tmp_path / "a")[0]["metrics"] == _results(tmp_path / "b")[0]["metrics"]
+    items = []
+    for f in sorted(pred.glob("*.npy")):
+        clip, k = f.stem.rsplit("_speaker", 1)
+        items.append(ScoreItem(f.stem, np.load(f), load_gt_npz(gt / f"{f.stem}.npz"),
+                               load_gt_npz(gt / f"{clip}_speaker{3 - int(k)}.npz")))
+    in_memory = score_arrays(items)
+    assert in_memory.metrics == _results(tmp_path / "a")[0]["metrics"]
+
+
+def test_nan_prediction_is_excluded_and_listed(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    bad = np.load(pred / "dlgA_speaker2.npy")
+    bad[5, 7] = np.nan
+    np.save(pred / "dlgA_speaker2.npy", bad)
+    code, out, _ = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res")
+    assert code == 0
+    assert "scored 5 of 6" in out and "dlgA_speaker2 (1 NaN/inf values" in out
+    results, frame = _results(tmp_path / "res")
+    assert results["excluded"] == [{"clip": "dlgA_speaker2", "reason": "1 NaN/inf values in the prediction"}]
+    assert "dlgA_speaker2" not in set(frame["clip"])
+    assert all(math.isfinite(v) for v in results["metrics"].values())
+    code, _, err = run(capsys, pred, "--gt", gt, "--strict")
+    assert code == 1 and "--strict" in err
+
+
+def test_missing_prediction_is_reported_and_strict_fails(dataset, capsys):
+    gt, pred = dataset
+    (pred / "dlgC_speaker1.npy").unlink()
+    code, out, _ = run(capsys, pred, "--gt", gt)
+    assert code == 0 and "scored 5 of 6; missing: dlgC_speaker1" in out
+    assert run(capsys, pred, "--gt", gt, "--strict")[0] == 1
+
+
+def test_complete_set_passes_strict(dataset, capsys):
+    gt, pred = dataset
+    assert run(capsys, pred, "--gt", gt, "--strict")[0] == 0
+
+
+@pytest.mark.parametrize("missing", ["dlgB_speaker1", "dlgB_speaker2"])
+def test_missing_gt_or_partner_file_is_named(dataset, capsys, missing):
+    gt, pred = dataset
+    (gt / f"{missing}.npz").unlink()
+    code, _, err = run(capsys, pred, "--gt", gt)
+    assert code == 2 and f"{missing}.npz" in err and "not found" in err
+
+
+def test_wrong_width_is_named(dataset, capsys):
+    gt, pred = dataset
+    np.save(pred / "dlgA_speaker1.npy", np.zeros((T, 53), np.float32))
+    code, _, err = run(capsys, pred, "--gt", gt)
+    assert code == 2 and "dlgA_speaker1.npy" in err and "56 values per frame" in err
+
+
+def test_pickled_prediction_npz_is_refused(dataset, tmp_path, capsys):
+    gt, _ = dataset
+    archive = tmp_path / "preds.npz"
+    np.savez(archive, dlgA_speaker1=np.array([{"x": 1}], dtype=object))
+    code, _, err = run(capsys, archive, "--gt", gt)
+    assert code == 2 and "preds.npz[dlgA_speaker1]" in err and "pickled" in err
+
+
+def test_empty_inputs(dataset, tmp_path, capsys):
+    gt, _ = dataset
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    code, _, err = run(capsys, empty, "--gt", gt)
+    assert code == 2 and "no .npy predictions" in err
+    code, _, err = run(capsys, gt, "--gt", empty)
+    assert code == 2 and "no DualTalk ground truth" in err
+    with pytest.raises(InputError, match="no items"):
+        score_arrays([])
+
+
+def test_bad_prediction_name(dataset, capsys):
+    gt, pred = dataset
+    np.save(pred / "dlgA_listener.npy", np.zeros((T, 56)))
+    code, _, err = run(capsys, pred, "--gt", gt)
+    assert code == 2 and "dlgA_listener.npy" in err and "_speaker1" in err
+
+
+def test_length_mismatch_is_truncated_and_counted(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    original = np.load(pred / "dlgC_speaker2.npy")
+    np.save(pred / "dlgC_speaker2.npy", np.vstack([original, original[:7]]))
+    code, out, _ = run(capsys, pred, "--gt", gt, "--out", tmp_path / "long")
+    assert code == 0 and "1 clip(s) truncated" in out
+    results, frame = _results(tmp_path / "long")
+    assert results["coverage"]["truncated"] == [
+        {"clip": "dlgC_speaker2", "pred": T + 7, "gt": T, "partner": T, "used": T}]
+    np.save(pred / "dlgC_speaker2.npy", original)
+    run(capsys, pred, "--gt", gt, "--out", tmp_path / "exact")
+    assert frame.equals(_results(tmp_path / "exact")[1])
+
+
+def test_too_short_clip_is_excluded(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    np.save(pred / "dlgA_speaker1.npy", np.load(pred / "dlgA_speaker1.npy")[:30])
+    code, out, _ = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res")
+    assert code == 0 and "only 30 common frames" in out
+    assert _results(tmp_path / "res")[0]["excluded"][0]["clip"] == "dlgA_speaker1"
+
+
+def test_short_clips_give_undefined_diversity_with_a_note(tmp_path, capsys):
+    rng = np.random.default_rng(1)
+    items = [ScoreItem(f"c{i}_speaker1", _smooth(rng, t), _smooth(rng, t), _smooth(rng, t))
+             for i, t in enumerate((60, 120, 130))]
+    report = score_arrays(items)
+    assert report.coverage["undefined"]["div_pred_exp"] == ["c0_speaker1"]
+    assert any("div_pred_exp undefined for 1 of 3 clips" in n for n in report.notes)
+    defined = [row["div_pred_exp"] for row in report.per_item[1:]]
+    assert report.metrics["div_pred_exp"] == pytest.approx(np.mean(defined))
+
+
+def test_score_arrays_requires_partner():
+    rng = np.random.default_rng(2)
+    with pytest.raises(InputError, match="partner"):
+        score_arrays([ScoreItem("x_speaker1", _smooth(rng), _smooth(rng))])
+
+
+def test_seed_changes_only_diversity(dataset):
+    gt, pred = dataset
+    a, b = score_paths(pred, gt, seed=0), score_paths(pred, gt, seed=1)
+    for key in KEYS:
+        same = a.metrics[key] == b.metrics[key]
+        assert same != key.startswith("div_"), key
+
+
+@pytest.mark.skipif(not DEMO.is_dir(), reason="DualTalk demo clips not available")
+def test_real_demo_folder_names_the_missing_partner(tmp_path, capsys):
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    stem = "xkHwlcDSOjc_sub_video_109_000_speaker1"
+    np.save(pred / f"{stem}.npy", load_gt_npz(DEMO / f"{stem}.npz"))
+    code, _, err = run(capsys, pred, "--gt", DEMO)
+    assert code == 2 and "xkHwlcDSOjc_sub_video_109_000_speaker2.npz" in err
+
+
+@pytest.mark.skipif(not DEMO.is_dir(), reason="DualTalk demo clips not available")
+def test_real_demo_clip_scores_against_itself(tmp_path):
+    gt = tmp_path / "gt"
+    gt.mkdir()
+    source = DEMO / "xkHwlcDSOjc_sub_video_109_000_speaker1.npz"
+    shutil.copy(source, gt / "demo_speaker1.npz")
+    partner = DEMO / "UbjUDM1MiGE_sub_video_72_speaker2.npz"
+    shutil.copy(partner, gt / "demo_speaker2.npz")  # a real partner (shorter: 587 frames)
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    np.save(pred / "demo_speaker1.npy", load_gt_npz(source))
+    report = score_paths(pred, gt)
+    assert report.coverage["expected"] == 2 and report.coverage["missing"] == ["demo_speaker2"]
+    assert report.metrics["mse_exp"] == 0.0 and report.metrics["rpcc_pose"] == 0.0
+    assert abs(report.metrics["fd_exp"]) < 1e-9
+    assert report.coverage["truncated"][0]["used"] == 587
