@@ -103,7 +103,7 @@ def speaker_style(speaker: str, *, seed: int, preset: str = "hage-like") -> Gaze
     For the 8 regular speakers each parameter's range is cut into 8 equal strata; a seeded permutation
     gives every speaker one stratum per parameter and a uniform draw inside it, so every corpus covers
     every range evenly (the corpus-level statistics vary little with the seed). ``ood`` speakers draw
-    from ranges beyond the preset's (30 % of the width, on a random side).
+    from ranges beyond the preset's (30 % of the width, on a random side; above when 0 leaves no room below).
     """
     if preset not in PRESETS:
         raise ConfigError(f"unknown gaze preset {preset!r} (known: {', '.join(PRESETS)})")
@@ -113,7 +113,8 @@ def speaker_style(speaker: str, *, seed: int, preset: str = "hage-like") -> Gaze
         r = rng(seed, "gaze-style", preset, speaker)
         for name, (lo, hi) in ranges.items():
             width = hi - lo
-            lo, hi = (hi, hi + 0.3 * width) if r.random() < 0.5 else (max(0.0, lo - 0.3 * width), lo)
+            below = r.random() >= 0.5 and lo - 0.3 * width >= 0.0  # no room below 0: go above
+            lo, hi = (lo - 0.3 * width, lo) if below else (hi, hi + 0.3 * width)
             values[name] = float(r.uniform(lo, hi))
         values["p_avert_speaking"] = min(values["p_avert_speaking"], 0.95)
         return GazeStyle(**values)
