@@ -20,6 +20,8 @@ ARTIC_LAG = 1  # mouth articulation expression <- own envelope and vowel (40 ms)
 HEAD_PROSODY_LAG = 3  # speaker head pitch <- own pitch contour (120 ms)
 BEAT_LAG = 2  # speaker beat nod <- own emphasised syllable (80 ms)
 MIRROR_LAG = 12  # expression affect <- partner's spontaneous affect (480 ms)
+JAW_OPEN_VOWEL, JAW_VOWEL_SLOPE = 1.4, 1.0  # jaw drive = envelope x (1.4 - 1.0 x vowel spread)
+JAW_SPEECH_NOISE = 0.25  # articulation noise while speaking, in units of jaw_gain
 PITCH_NORM = 0.12  # relative pitch deviation mapped to one unit of head_speak_amp
 
 
@@ -74,14 +76,16 @@ def motion(r: np.random.Generator, style: Style, w: World, own: SpeechSignals, o
            + ou_process(r, n, 0.6 * fps, style.idle_exp_std * w.dim_scale, EXP_DIM)
            + r.normal(0.0, 0.03, (n, EXP_DIM)) * w.dim_scale)
 
-    jaw_env = lowpass(delay(own.envelope, JAW_LAG), 1.0)
+    # open vowels open the jaw more than spread ones: loudness alone explains only part of the jaw
+    speaking_smooth = lowpass(own.speaking.astype(np.float64), 10.0)
+    jaw_env = lowpass(delay(own.envelope * (JAW_OPEN_VOWEL - JAW_VOWEL_SLOPE * own.vowel), JAW_LAG), 1.0)
     jaw = np.stack([
-        style.jaw_rest + style.jaw_gain * jaw_env + ou_process(r, n, 0.5 * fps, 0.006)[:, 0],
+        style.jaw_rest + style.jaw_gain * (jaw_env + JAW_SPEECH_NOISE * speaking_smooth * ou_process(r, n, 3.0, 1.0)[:, 0])
+        + ou_process(r, n, 0.5 * fps, 0.006)[:, 0],
         0.25 * style.jaw_gain * jaw_env * (delay(own.vowel, JAW_LAG) - 0.5) + ou_process(r, n, 0.4 * fps, 0.008)[:, 0],
         ou_process(r, n, 0.4 * fps, 0.008)[:, 0],
     ], axis=1)
 
-    speaking_smooth = lowpass(own.speaking.astype(np.float64), 10.0)
     prosody = lowpass(delay(own.pitch, HEAD_PROSODY_LAG), 5.0) / PITCH_NORM
     own_emph = np.round(own_track.emphasis_times() * fps).astype(np.int64) + BEAT_LAG
     beat = causal_response(n, own_emph, nod_kernel(fps, freq_hz=3.0, decay_s=0.15, length_s=0.5))

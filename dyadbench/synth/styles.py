@@ -51,8 +51,8 @@ STYLE_RANGES = {
         "syllable_rate": (4.0, 5.0), "f0_base": (95.0, 210.0), "f0_accent": (0.15, 0.3),
         "loudness": (0.12, 0.25), "timbre_tilt": (0.8, 1.4),
         "jaw_rest": (0.0, 0.05), "jaw_gain": (0.07, 0.12), "artic_gain": (0.9, 1.3),
-        "head_speak_amp": (0.03, 0.06), "idle_head_std": (0.02, 0.04),
-        "nod_amp": (0.03, 0.05), "nod_prob": (0.6, 0.9), "nod_lag_s": (0.25, 0.4),
+        "head_speak_amp": (0.04, 0.07), "idle_head_std": (0.01, 0.02),
+        "nod_amp": (0.04, 0.07), "nod_prob": (0.6, 0.9), "nod_lag_s": (0.25, 0.4),
         "smile_amp": (0.8, 1.4), "smile_prob": (0.4, 0.7), "smile_lag_s": (0.4, 0.6),
         "mirror_gain": (0.35, 0.6), "blink_rate": (0.2, 0.4), "idle_exp_std": (0.12, 0.2),
         "affect_std": (0.4, 0.7), "backchannel_tendency": (0.6, 1.4), "turn_factor": (0.7, 1.3),
@@ -61,8 +61,8 @@ STYLE_RANGES = {
         "syllable_rate": (5.0, 6.0), "f0_base": (150.0, 260.0), "f0_accent": (0.25, 0.4),
         "loudness": (0.15, 0.3), "timbre_tilt": (1.3, 1.8),
         "jaw_rest": (0.02, 0.07), "jaw_gain": (0.1, 0.15), "artic_gain": (1.1, 1.5),
-        "head_speak_amp": (0.05, 0.09), "idle_head_std": (0.03, 0.05),
-        "nod_amp": (0.045, 0.07), "nod_prob": (0.7, 0.95), "nod_lag_s": (0.4, 0.55),
+        "head_speak_amp": (0.06, 0.1), "idle_head_std": (0.015, 0.03),
+        "nod_amp": (0.06, 0.09), "nod_prob": (0.7, 0.95), "nod_lag_s": (0.4, 0.55),
         "smile_amp": (1.2, 1.8), "smile_prob": (0.6, 0.9), "smile_lag_s": (0.55, 0.75),
         "mirror_gain": (0.5, 0.75), "blink_rate": (0.35, 0.55), "idle_exp_std": (0.15, 0.25),
         "affect_std": (0.5, 0.8), "backchannel_tendency": (1.0, 1.8), "turn_factor": (0.6, 1.0),
@@ -137,7 +137,7 @@ def world(version: int = GENERATOR_VERSION) -> World:
 def _draw_style(r: np.random.Generator, identity: str, ranges: dict, w: World) -> Style:
     values = {name: float(r.uniform(lo, hi)) for name, (lo, hi) in ranges.items()}
     offset = w.population_mean + r.normal(0.0, 0.3, EXP_DIM) * w.dim_scale
-    head_mean = np.array([0.1, 0.12, 0.0]) + r.normal(0.0, 1.0, 3) * np.array([0.08, 0.1, 0.05])
+    head_mean = np.array([0.1, 0.12, 0.0]) + r.normal(0.0, 1.0, 3) * np.array([0.03, 0.04, 0.02])
     return Style(identity=identity, exp_offset=tuple(float(x) for x in offset),
                  head_mean=tuple(float(x) for x in head_mean), **values)
 
