@@ -45,6 +45,9 @@ def test_ground_truth_against_itself(gt_report):
     assert gt_report.config["skip_frames"] == 50 and gt_report.config["seed"] == 0
     assert gt_report.config["idt_eyes"] == "pooled"
     assert "SimScore" in gt_report.table()
+    directions = gt_report.config["higher_is_better"]
+    assert directions["mae_all"] is False and directions["sim_gt_seq"] is True and directions["bas_delta_head"]
+    assert directions["fix_ratio"] is None and set(directions) == set(m)
 
 
 def test_speech_linked_head_beats_beat_shuffled_speech(gt_report):

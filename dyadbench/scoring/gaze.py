@@ -187,6 +187,17 @@ def _add_style(results: list[dict], items: dict[str, ScoreItem], cfg: GazeSuiteC
                                   else float("nan"))
 
 
+def higher_is_better(key: str) -> bool | None:
+    """Direction of a suite key (None: closer to the ground truth's value, or a reference value)."""
+    base = key.removeprefix("gt_")
+    for group in gaze.GROUPS:
+        base = base.removesuffix(f"_{group}")
+    if "shuffled" in base or base == "saccade_ratio":
+        return None
+    base = base.replace("bas_a2m", "bas")
+    return gaze.METRICS[base].higher_is_better
+
+
 def _nanmean(values: list[float]) -> float:
     arr = np.asarray(values, dtype=np.float64)
     arr = arr[np.isfinite(arr)]
@@ -236,7 +247,8 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config
     config_dict = {**asdict(cfg), "seed": seed, "fps": FPS, "velocity": "first difference, deg/frame",
                    "aggregation": "error metrics: mean over sequences; fix_ratio/comp_score: pooled frames; "
                                   "sim_gt: from split-level aggregates",
-                   "style_encoder": getattr(style_encoder, "digest", None)}
+                   "style_encoder": getattr(style_encoder, "digest", None),
+                   "higher_is_better": {k: higher_is_better(k) for k in metrics}}
     columns = [c for c in COLUMNS if c.key in metrics]
     return ScoreReport(suite=SUITE, metrics=metrics, scaled=scaled, per_item=per_item, excluded=excluded,
                        coverage={"expected": len(items), "scored": len(per_item), "missing": [], "extra": []},
