@@ -3,8 +3,9 @@
 :func:`check_causal` streams a clip twice through fresh models from ``model_factory`` — once as is and
 once with every input after turn t replaced (both participants' motion and speech: seeded Gaussian
 noise at a different scale and offset) — and requires the outputs of turns 0..t to be identical. For a
-model that is not an oracle the agent's ground-truth motion is replaced over the whole clip as well:
-the protocol never hands it to such a model, so nothing may change. Every model's tests call this.
+model that is not an oracle the agent's ground-truth motion is replaced over the whole clip as well
+(after its seed window, ``ModelInfo.seed_frames``): the protocol never hands it to such a model, so
+nothing may change. Every model's tests call this.
 """
 
 from __future__ import annotations
@@ -26,18 +27,19 @@ class CausalityViolation(AssertionError):
     """A model's output up to turn t changed when inputs after turn t changed."""
 
 
-def perturb_after(clip: DyadicClip, first_frame: int, *, agent: str | None = None,
+def perturb_after(clip: DyadicClip, first_frame: int, *, agent: str | None = None, agent_from: int = 0,
                   seed: int = 0) -> DyadicClip:
     """A copy of ``clip`` whose motion from ``first_frame`` and audio from the matching sample are replaced.
 
     Replacement values are seeded Gaussian noise with 3x the array's scale plus an offset, so any read of
-    them shows. When ``agent`` is given, that participant's motion is replaced from frame 0.
+    them shows. When ``agent`` is given, that participant's motion is replaced from frame ``agent_from``
+    (0, or the end of the model's seed window).
     """
     first_sample = int(round(first_frame * clip.sample_rate / clip.fps))
     participants = []
     for p in clip.participants:
         gen = rng(seed, clip.clip_id, p.name)
-        motion_from = 0 if p.name == agent else first_frame
+        motion_from = min(agent_from, first_frame) if p.name == agent else first_frame
         participants.append(Participant(p.name, _replace_from(p.motion, motion_from, gen),
                                         _replace_from(p.audio, first_sample, gen), p.identity))
     return replace(clip, participants=tuple(participants))
@@ -59,7 +61,8 @@ def check_causal(model_factory: Callable[[], StreamingModel], clip: DyadicClip, 
         raise ConfigError(f"{type(model).__name__} is not a StreamingModel; causality applies to streaming models")
     reference = stream_agent(model, clip, agent, config).motion
     oracle = bool(model.info.oracle)
-    changed = perturb_after(clip, (turn + 1) * frames, agent=None if oracle else agent, seed=config.seed)
+    changed = perturb_after(clip, (turn + 1) * frames, agent=None if oracle else agent,
+                            agent_from=int(model.info.seed_frames), seed=config.seed)
     perturbed = stream_agent(model_factory(), changed, agent, config).motion
 
     upto = (turn + 1) * frames

@@ -32,6 +32,7 @@ class ModelInfo:
     weights_path: str | None = None
     oracle: bool = False  # True only for models that read the agent's ground truth (never ranked)
     config: dict = field(default_factory=dict)
+    seed_frames: int = 0  # leading ground-truth frames of the agent handed over as a seed window (scores skip them)
 
 
 @dataclass(frozen=True)
@@ -76,7 +77,8 @@ class TurnInput:
     - ``agent_history`` (h·F, D): the model's own earlier outputs for the history turns, only when the
       run's history policy is ``outputs``; ``None`` when history agent motion is masked (default).
     - ``agent_motion_oracle`` ((h+1)·F, D): the agent's ground truth, given only to models whose
-      :class:`ModelInfo` says ``oracle=True``; ``None`` for every other model.
+      :class:`ModelInfo` says ``oracle=True``, and for the turns that lie entirely inside a model's seed
+      window (``ModelInfo.seed_frames``); ``None`` otherwise.
     """
 
     turn: int

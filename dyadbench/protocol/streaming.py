@@ -3,7 +3,10 @@
 For turn t of a clip (turns of ``config.turn_seconds``) the model receives, for the window of the
 h = min(t, n) previous turns plus the current one: the user's (partner's) motion and speech and the
 agent's own speech, all ground truth; optionally (``history_agent = outputs``) its own outputs for the
-h history turns; and, only for oracle models, the agent's ground-truth motion of the window. Every array
+h history turns; and, only for oracle models, the agent's ground-truth motion of the window. A model
+with a seed window (``ModelInfo.seed_frames`` > 0, e.g. StyGazeTalk's "initial motion window") gets that
+ground truth too, but only for the turns that lie entirely inside its first ``seed_frames`` frames;
+scores skip those frames. Every array
 handed over is a fresh read-only copy of exactly that window, so a model cannot reach frames after the
 current turn (a NumPy view would expose the whole clip through ``.base``). Audio shorter than the
 motion is zero-padded at the end; frames after the last whole turn are dropped (``tail = truncate``)
@@ -68,6 +71,7 @@ def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: Pr
     partner = clip.partner_of(agent)
     user_motion = partner.motion if partner else np.zeros((clip.num_frames, 0), np.float32)
     oracle = bool(getattr(model.info, "oracle", False))
+    seed = int(getattr(model.info, "seed_frames", 0))  # seed window: turns entirely inside it get the GT
     F, S, dim = ctx.frames_per_turn, ctx.samples_per_turn, clip.motion_layout.dim
 
     model.start_stream(ctx)
@@ -85,7 +89,7 @@ def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: Pr
             agent_history=(make_readonly(np.concatenate(outputs[t - h:t], axis=0) if h else
                                      np.zeros((0, dim), np.float32))
                            if config.history_agent == "outputs" else None),
-            agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if oracle else None,
+            agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if oracle or f1 <= seed else None,
         )
         start = time.perf_counter()
         out = model.predict_turn(turn)
