@@ -88,7 +88,7 @@ class GazeStyle:
 PRESETS: dict[str, dict[str, tuple[float, float]]] = {
     "hage-like": {"fix_mean": (0.22, 0.40), "p_avert_speaking": (0.30, 0.55), "p_avert_listening": (0.05, 0.15),
                   "avert_amp": (10.0, 22.0), "face_sd": (1.5, 3.0), "head_share": (0.15, 0.40),
-                  "head_tau": (0.15, 0.35), "nod": (1.5, 3.5), "drift": (1.2, 2.8), "noise": (0.45, 0.85),
+                  "head_tau": (0.15, 0.35), "nod": (1.5, 3.5), "drift": (1.2, 2.8), "noise": (0.42, 0.82),
                   "glitch": (0.02, 0.06), "blink": (0.25, 0.45), "vergence": (0.0, 0.8)},
     "clean": {"fix_mean": (0.16, 0.28), "p_avert_speaking": (0.30, 0.55), "p_avert_listening": (0.05, 0.15),
               "avert_amp": (10.0, 22.0), "face_sd": (1.5, 3.0), "head_share": (0.15, 0.40),
