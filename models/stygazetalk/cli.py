@@ -1,0 +1,131 @@
+"""Trainers: ``dyadbench train stygazetalk-style`` (stage 1) and ``dyadbench train stygazetalk`` (stage 2)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import click
+
+from dyadbench.errors import ConfigError
+
+THREADS_HELP = "Torch CPU threads (the shipped tiny runs use 2)."
+DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
+
+
+def _open(dataset: str, root: Path | None, split: str):
+    from dyadbench.registry import DATASETS
+    return DATASETS.load(dataset)(root, split)
+
+
+def _overrides(base, **values):
+    given = {k: v for k, v in values.items() if v is not None}
+    return replace(base, **given) if given else base
+
+
+@click.command("stygazetalk-style")
+@click.option("--config", "config_name", default="tiny-se64", show_default=True,
+              help="Style-encoder preset: tiny-se64, tiny-se32, base-se64, base-se32.")
+@click.option("--dataset", default="synthetic-gaze", show_default=True, help=DATASET_HELP)
+@click.option("--data", "root", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Dataset root folder (default: the embedded synthetic sessions, generated on first use).")
+@click.option("--train-split", default="train", show_default=True, help="Split to train on.")
+@click.option("--val-split", default="val", show_default=True,
+              help="Split for early-stopping selection (validation NT-Xent) and the retrieval check.")
+@click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
+@click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
+@click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
+              help="Evaluate the validation NT-Xent every this many steps.")
+@click.option("--threads", type=click.IntRange(min=1), default=2, show_default=True, help=THREADS_HELP)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Checkpoint file to write (atomically).")
+def train_style_encoder(config_name: str, dataset: str, root: Path | None, train_split: str, val_split: str,
+                        steps: int | None, seed: int | None, val_every: int, threads: int, out: Path) -> None:
+    """Stage 1: train the contrastive (NT-Xent) style encoder on adjacent windows of one speaker.
+
+    Prints the validation NT-Xent curve and the top-1 same-speaker retrieval accuracy of the selected
+    weights on the validation windows (against its chance level).
+    """
+    import torch
+
+    from models.stygazetalk.checkpoints import save_style_model
+    from models.stygazetalk.config import get_style_config
+    from models.stygazetalk.data import load_segments
+    from models.stygazetalk.train_style import retrieval_accuracy, tiled_windows, train_style_encoder as fit
+
+    torch.set_num_threads(threads)
+    cfg = _overrides(get_style_config(config_name), steps=steps, seed=seed)
+    min_frames = 2 * cfg.window + cfg.pair_gap_max
+    train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
+    train = load_segments(train_src, cfg.angle_limit_deg, min_frames)
+    val = load_segments(val_src, cfg.angle_limit_deg, min_frames)
+    model, log = fit(cfg, train, val, val_every=val_every)
+    windows, speakers, _ = tiled_windows(val, cfg.window)
+    acc, chance = retrieval_accuracy(model.embed_degrees(windows), speakers)
+    meta = {"data": {"train": train_src.describe(), "val": val_src.describe()}, "seed": cfg.seed,
+            "steps": cfg.steps, "best_step": log.best_step, "best_val_nt_xent": log.best_val,
+            "train_seconds": log.seconds, "val_retrieval_top1": acc, "val_retrieval_chance": chance,
+            "curve": {"step": log.steps, "train": log.train_loss, "val": log.val_loss}}
+    path = save_style_model(out, model, meta)
+    click.echo(f"style encoder {cfg.name}: best val NT-Xent {log.best_val:.4f} at step {log.best_step} "
+               f"({log.seconds:.0f} s); val retrieval top-1 {acc:.3f} (chance {chance:.3f}); wrote {path}")
+
+
+@click.command("stygazetalk")
+@click.option("--config", "config_name", default="tiny-se64", show_default=True,
+              help="Generator preset <size>-<variant>: size tiny|base; variant base, se32, se64, se64-vel, "
+                   "tfm-se64, mpgw-sim (mpgw-sim differs only at inference: corrupted seed).")
+@click.option("--style-encoder", "style_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Stage-1 checkpoint (required for every variant but base); it is frozen and copied "
+                   "into the generator checkpoint together with its motion statistics.")
+@click.option("--dataset", default="synthetic-gaze", show_default=True, help=DATASET_HELP)
+@click.option("--data", "root", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Dataset root folder (default: the embedded synthetic sessions).")
+@click.option("--train-split", default="train", show_default=True, help="Split to train on.")
+@click.option("--val-split", default="val", show_default=True,
+              help="Split for checkpoint selection (teacher-forced validation loss).")
+@click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
+@click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
+              help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
+@click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
+@click.option("--threads", type=click.IntRange(min=1), default=2, show_default=True, help=THREADS_HELP)
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
+              help="Checkpoint file to write (atomically).")
+def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
+                    val_split: str, steps: int | None, lam: float | None, seed: int | None, threads: int,
+                    out: Path) -> None:
+    """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
+
+    The selected weights are those with the lowest teacher-forced validation loss.
+    """
+    import torch
+
+    from dyadbench.training.checkpoint import file_digest
+    from models.stygazetalk.checkpoints import load_style_model, save_system, system_from_style
+    from models.stygazetalk.config import get_generator_config
+    from models.stygazetalk.data import load_segments
+    from models.stygazetalk.train_generator import train_generator as fit
+
+    torch.set_num_threads(threads)
+    cfg = _overrides(get_generator_config(config_name), steps=steps, lam=lam, seed=seed).validate()
+    style, style_digest = None, None
+    if cfg.style:
+        if style_path is None:
+            raise ConfigError(f"{cfg.name} conditions on a style encoder: pass --style-encoder "
+                              f"(train one with `dyadbench train stygazetalk-style --config tiny-se{cfg.d_s}`)")
+        style, _ = load_style_model(style_path)
+        style_digest = file_digest(style_path)
+    system = system_from_style(cfg, style)
+    pre = cfg.window if cfg.style_input == "preceding" else 0
+    train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
+    train = load_segments(train_src, cfg.angle_limit_deg, cfg.window + 1 + pre)
+    val = load_segments(val_src, cfg.angle_limit_deg, cfg.window + 1 + pre)
+    log = fit(system, train, val)
+    meta = {"data": {"train": train_src.describe(), "val": val_src.describe()}, "seed": cfg.seed,
+            "steps": cfg.steps, "style_encoder_digest": style_digest, "best_step": log.best_step,
+            "best_val_loss": log.best_val, "step0_val_loss": log.step0_val_loss, "train_seconds": log.seconds,
+            "train_windows": log.train_windows,
+            "curve": {"step": log.steps, "train": log.train_loss, "val": log.val_loss}}
+    path = save_system(out, system, meta)
+    click.echo(f"generator {cfg.name} ({cfg.variant}): val loss {log.step0_val_loss:.4f} -> {log.best_val:.4f} "
+               f"(best step {log.best_step}, {log.seconds:.0f} s); wrote {path}")

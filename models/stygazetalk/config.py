@@ -1,0 +1,203 @@
+"""StyGazeTalk configurations: every implementation decision of the spec (D1–D39) is a named field.
+
+Two frozen dataclasses, :class:`StyleEncoderConfig` (stage 1, contrastive) and
+:class:`GeneratorConfig` (stage 2, LSTM or Transformer generator), and a table of named presets:
+the paper's variants (Base, SE-32, SE-64, SE-64-VEL, TFM-SE-64, MPGW-sim) at two sizes, ``base``
+(the spec's decided sizes) and ``tiny`` (minutes on 2 CPU cores). A preset name is
+``<size>-<variant>``, e.g. ``tiny-se64``; the style encoder presets are ``<size>-se32`` / ``<size>-se64``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields, replace
+
+from dyadbench.errors import ConfigError
+
+MOTION_DIM = 7  # D1: [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch, R_yaw], degrees
+CHANNELS = ("head_pitch", "head_yaw", "head_roll", "left_pitch", "left_yaw", "right_pitch", "right_yaw")
+
+
+@dataclass(frozen=True)
+class StyleEncoderConfig:
+    """Stage 1: Transformer style encoder trained with NT-Xent (spec §2.5, §2.8)."""
+
+    name: str = "base-se64"
+    d_s: int = 64  # D15: Transformer width = style dim (no output projection)
+    layers: int = 4  # D16
+    heads: int = 4
+    ffn_mult: int = 4
+    dropout: float = 0.1  # D14/D16 (0 in tiny)
+    positional_encoding: str = "sinusoidal"  # D14: per-position sinusoidal "MTE" (not DiffPoseTalk's)
+    pooling: str = "mean"  # D15
+    window: int = 50  # SE window = generator window M (D31)
+    temperature: float = 0.1  # D23
+    loss_reduction: str = "mean"  # D22: mean over the 2B views (paper sums)
+    pair_gap_max: int = 5  # D24: positive b starts M + U{0..gap} frames after a
+    distinct_anchor_gap_s: float = 10.0  # D24: same-session anchors of one batch at least this far apart
+    batch_pairs: int = 32  # D25
+    lr: float = 1e-4
+    steps: int = 20_000
+    normalisation: str = "zscore-train"  # D4
+    angle_limit_deg: float = 40.0  # D3
+    seed: int = 0
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass(frozen=True)
+class GeneratorConfig:
+    """Stage 2: speech-to-motion generator with sliding-window inference (spec §2.1–2.12)."""
+
+    name: str = "base-se64"
+    variant: str = "SE-64"  # the paper's row name (Table 2)
+    # windows (D5, D31)
+    window: int = 50  # M: LSTM steps per window
+    horizon: int = 25  # N: new frames per window (one dyadbench turn)
+    alignment: str = "one-frame-lag"  # D5: step i reads audio t+i and motion t+i-1, predicts t+i
+    # audio (D10–D13)
+    audio_features: str = "logmel"  # "logmel" (D13) | "wav2vec" (D10, local weights only)
+    n_mels: int = 80  # D13 (40 in tiny)
+    logmel_win_length: int = 1024  # D13
+    wav2vec_path: str | None = None  # D10: local wav2vec2-base-960h folder; never downloaded
+    wav2vec_finetune_top_k: int = 0  # D11: frozen
+    window_local_audio: bool = True  # D12: features computed from the window's waveform only
+    feature_grid_stride: int = 25  # D12: training windows start on this grid (N: the inference grid)
+    # networks (D6, D14–D19, D29)
+    d: int = 128  # D32: audio and motion projection width
+    motion_encoder: str = "linear"  # D6
+    style: bool = True  # False = Base (Z is 2d)
+    d_s: int = 64
+    style_input: str = "motion-window"  # D7: SE reads the motion-input window ("preceding": M before)
+    freeze_style_encoder: bool = True  # D26
+    backbone: str = "lstm"  # "lstm" | "transformer" (TFM, D29)
+    lstm_layers: int = 3  # D17
+    lstm_hidden: int = 256
+    lstm_dropout: float = 0.1
+    learned_initial_state: bool = True  # (h0, c0) parameters, reset every window [P §3.2]
+    tfm_d_model: int = 192  # D29
+    tfm_layers: int = 4
+    tfm_heads: int = 4
+    tfm_ffn: int = 768
+    tfm_dropout: float = 0.1
+    residual_output: bool = False  # D18: absolute (normalised) frame
+    concat_order: tuple[str, ...] = ("audio", "motion", "style")  # D19
+    # loss (D8, D9, D20, D21)
+    lam: float = 1.0  # D21: L = lam * MSE + (1 - lam) * velocity MSE
+    loss_outputs: str = "all"  # D8 ("last-n": only the last N outputs)
+    loss_reduction: str = "mean"  # D20
+    rollout_prob: float = 0.0  # D9
+    # optimisation (D27)
+    batch: int = 64
+    lr: float = 5e-4
+    lr_min: float = 1e-5
+    lr_schedule: str = "cosine"
+    steps: int = 30_000
+    grad_clip: float = 1.0
+    weight_decay: float = 0.0
+    val_every: int = 500
+    # data and evaluation (D3, D4, D28, D30)
+    normalisation: str = "zscore-train"  # D4
+    angle_limit_deg: float = 40.0  # D3: frames with any |angle| above are dropped by the adapter
+    seed_window: str = "gt"  # D28: M ground-truth frames seed generation; "mpgw-sim" = D30
+    mpgw_bias_sd_deg: float = 4.0  # D30
+    mpgw_noise_sd_deg: float = 2.0
+    seed: int = 0
+
+    @property
+    def warmup(self) -> int:
+        """W = M − N known steps before the N autoregressive ones (D5)."""
+        return self.window - self.horizon
+
+    @property
+    def style_dim(self) -> int:
+        return self.d_s if self.style else 0
+
+    def to_dict(self) -> dict:
+        d = asdict(self)
+        d["concat_order"] = list(self.concat_order)
+        return d
+
+    def validate(self) -> "GeneratorConfig":
+        if not 1 <= self.horizon <= self.window:
+            raise ConfigError(f"{self.name}: need 1 <= horizon N <= window M, got N={self.horizon}, M={self.window}")
+        if self.backbone not in ("lstm", "transformer"):
+            raise ConfigError(f"{self.name}: backbone must be lstm or transformer, got {self.backbone!r}")
+        if self.audio_features not in ("logmel", "wav2vec"):
+            raise ConfigError(f"{self.name}: audio_features must be logmel or wav2vec")
+        if self.style_input not in ("motion-window", "preceding"):
+            raise ConfigError(f"{self.name}: style_input must be motion-window or preceding")
+        if self.loss_outputs not in ("all", "last-n"):
+            raise ConfigError(f"{self.name}: loss_outputs must be all or last-n")
+        if self.seed_window not in ("gt", "mpgw-sim"):
+            raise ConfigError(f"{self.name}: seed_window must be gt or mpgw-sim")
+        if sorted(self.concat_order) != ["audio", "motion", "style"]:
+            raise ConfigError(f"{self.name}: concat_order must order audio, motion and style")
+        if not 0.0 <= self.lam <= 1.0:
+            raise ConfigError(f"{self.name}: lam must be in [0, 1], got {self.lam}")
+        return self
+
+
+def config_from_dict(cls: type, data: dict):
+    """Rebuild a config from a checkpoint's plain dict (unknown keys are an error)."""
+    known = {f.name for f in fields(cls)}
+    unknown = set(data) - known
+    if unknown:
+        raise ConfigError(f"unknown {cls.__name__} fields in checkpoint: {sorted(unknown)}")
+    data = dict(data)
+    if "concat_order" in data:
+        data["concat_order"] = tuple(data["concat_order"])
+    return cls(**data)
+
+
+# --- presets ----------------------------------------------------------------------------------------
+_SE_BASE = StyleEncoderConfig()
+_SE_TINY = replace(_SE_BASE, layers=2, heads=2, dropout=0.0, lr=1e-3, steps=500)  # spec §7.2
+
+STYLE_ENCODERS: dict[str, StyleEncoderConfig] = {
+    "base-se64": replace(_SE_BASE, name="base-se64"),
+    "base-se32": replace(_SE_BASE, name="base-se32", d_s=32),
+    "tiny-se64": replace(_SE_TINY, name="tiny-se64"),
+    "tiny-se32": replace(_SE_TINY, name="tiny-se32", d_s=32),
+}
+
+_GEN_BASE = GeneratorConfig()
+# spec §7.2 / §2.12 tiny column: d 32, LSTM 2x64, dropout 0, log-mel 40, Adam 2e-3 cosine -> 1e-4, batch 32
+_GEN_TINY = replace(_GEN_BASE, n_mels=40, d=32, lstm_layers=2, lstm_hidden=64, lstm_dropout=0.0,
+                    tfm_d_model=64, tfm_layers=2, tfm_heads=4, tfm_ffn=256, tfm_dropout=0.0,
+                    batch=32, lr=2e-3, lr_min=1e-4, steps=1500, val_every=250, feature_grid_stride=5)
+
+# variant -> (paper row, overrides). The style encoder each variant reads is named by STYLE_FOR.
+_VARIANTS: dict[str, tuple[str, dict]] = {
+    "base": ("Base", {"style": False}),
+    "se32": ("SE-32", {"d_s": 32}),
+    "se64": ("SE-64", {"d_s": 64}),
+    "se64-vel": ("SE-64-VEL", {"d_s": 64, "lam": 0.5}),  # D21
+    "tfm-se64": ("TFM-SE-64", {"d_s": 64, "backbone": "transformer"}),  # D29
+    "mpgw-sim": ("MPGW-sim", {"d_s": 64, "seed_window": "mpgw-sim"}),  # D30 (same weights as SE-64)
+}
+
+GENERATORS: dict[str, GeneratorConfig] = {}
+for _size, _proto in (("base", _GEN_BASE), ("tiny", _GEN_TINY)):
+    for _key, (_row, _over) in _VARIANTS.items():
+        GENERATORS[f"{_size}-{_key}"] = replace(_proto, name=f"{_size}-{_key}", variant=_row, **_over).validate()
+
+
+def style_encoder_for(gen: GeneratorConfig) -> str | None:
+    """Name of the style-encoder preset a generator preset conditions on (None for Base)."""
+    if not gen.style:
+        return None
+    size = gen.name.split("-", 1)[0]
+    return f"{size}-se{gen.d_s}"
+
+
+def get_style_config(name: str) -> StyleEncoderConfig:
+    if name not in STYLE_ENCODERS:
+        raise ConfigError(f"unknown style-encoder config {name!r} (known: {', '.join(STYLE_ENCODERS)})")
+    return STYLE_ENCODERS[name]
+
+
+def get_generator_config(name: str) -> GeneratorConfig:
+    if name not in GENERATORS:
+        raise ConfigError(f"unknown StyGazeTalk config {name!r} (known: {', '.join(GENERATORS)})")
+    return GENERATORS[name]

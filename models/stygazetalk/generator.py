@@ -1,0 +1,115 @@
+"""The StyGazeTalk motion generator (spec §2.1–2.6, §2.11): per-frame fusion Z = [Ã; X̃; s] into a
+recurrent (LSTM, learned initial state) or causal-Transformer core, one output frame per step.
+
+Window alignment (D5, one-frame lag): step i of a window reads the audio of frame u+i and the motion of
+frame u+i−1, and predicts frame u+i. :meth:`MotionGenerator.forward` runs all M steps teacher-forced,
+or switches to its own outputs from step ``free_from`` on (the autoregressive part of inference, and
+rollout training, D9). Every window starts from the learned (h0, c0) [P §3.2].
+"""
+
+from __future__ import annotations
+
+import torch
+from torch import nn
+
+from models.stygazetalk.config import MOTION_DIM, GeneratorConfig
+from models.stygazetalk.style_encoder import SinusoidalPositions
+
+
+class LSTMCore(nn.Module):
+    """Multi-layer LSTM whose initial hidden and cell states are learned parameters (D17)."""
+
+    def __init__(self, in_dim: int, cfg: GeneratorConfig):
+        super().__init__()
+        self.lstm = nn.LSTM(in_dim, cfg.lstm_hidden, cfg.lstm_layers, batch_first=True,
+                            dropout=cfg.lstm_dropout if cfg.lstm_layers > 1 else 0.0)
+        shape = (cfg.lstm_layers, 1, cfg.lstm_hidden)
+        self.h0 = nn.Parameter(torch.zeros(shape), requires_grad=cfg.learned_initial_state)
+        self.c0 = nn.Parameter(torch.zeros(shape), requires_grad=cfg.learned_initial_state)
+        self.out_dim = cfg.lstm_hidden
+
+    def initial_state(self, batch: int) -> tuple[torch.Tensor, torch.Tensor]:
+        return (self.h0.expand(-1, batch, -1).contiguous(), self.c0.expand(-1, batch, -1).contiguous())
+
+    def forward(self, z: torch.Tensor, state: tuple[torch.Tensor, torch.Tensor]):
+        return self.lstm(z, state)
+
+
+class TransformerCore(nn.Module):
+    """Causal Transformer replacing the LSTM (TFM-SE-64, D29). Its "state" is the input prefix so far."""
+
+    def __init__(self, in_dim: int, cfg: GeneratorConfig):
+        super().__init__()
+        self.proj = nn.Linear(in_dim, cfg.tfm_d_model)
+        self.positions = SinusoidalPositions(cfg.tfm_d_model)
+        layer = nn.TransformerEncoderLayer(cfg.tfm_d_model, cfg.tfm_heads, cfg.tfm_ffn, cfg.tfm_dropout,
+                                           activation="gelu", batch_first=True)
+        self.encoder = nn.TransformerEncoder(layer, cfg.tfm_layers, enable_nested_tensor=False)
+        self.out_dim = cfg.tfm_d_model
+
+    def initial_state(self, batch: int) -> torch.Tensor | None:
+        return None
+
+    def forward(self, z: torch.Tensor, prefix: torch.Tensor | None):
+        seq = z if prefix is None else torch.cat([prefix, z], dim=1)
+        mask = nn.Transformer.generate_square_subsequent_mask(seq.shape[1], device=seq.device)
+        h = self.encoder(self.positions(self.proj(seq)), mask=mask, is_causal=True)
+        return h[:, -z.shape[1]:], seq
+
+
+class MotionGenerator(nn.Module):
+    """(audio features, previous motion, style) per frame → next motion frame, all normalised (D4)."""
+
+    def __init__(self, cfg: GeneratorConfig, audio_dim: int):
+        super().__init__()
+        self.cfg = cfg.validate()
+        self.audio_proj = nn.Linear(audio_dim, cfg.d)
+        self.motion_proj = nn.Linear(MOTION_DIM, cfg.d)  # D6
+        in_dim = 2 * cfg.d + cfg.style_dim
+        self.core = LSTMCore(in_dim, cfg) if cfg.backbone == "lstm" else TransformerCore(in_dim, cfg)
+        self.head = nn.Linear(self.core.out_dim, MOTION_DIM)  # D18
+
+    def fuse(self, audio: torch.Tensor, motion: torch.Tensor, style: torch.Tensor | None) -> torch.Tensor:
+        """Z = concatenation along features in ``cfg.concat_order`` (D19); s is repeated over time."""
+        parts = {"audio": self.audio_proj(audio), "motion": self.motion_proj(motion)}
+        if self.cfg.style:
+            if style is None:
+                raise ValueError(f"{self.cfg.name} conditions on a style vector; none was given")
+            parts["style"] = style[:, None, :].expand(-1, audio.shape[1], -1)
+        return torch.cat([parts[k] for k in self.cfg.concat_order if k in parts], dim=-1)
+
+    def _emit(self, hidden: torch.Tensor, motion_in: torch.Tensor) -> torch.Tensor:
+        y = self.head(hidden)
+        return motion_in + y if self.cfg.residual_output else y
+
+    def forward(self, audio: torch.Tensor, motion_in: torch.Tensor, style: torch.Tensor | None = None,
+                free_from: int | None = None) -> torch.Tensor:
+        """Outputs (B, M, 7) for audio (B, M, F) and motion inputs (B, ≥free_from, 7).
+
+        Steps ``< free_from`` read ``motion_in`` (teacher forcing / known frames); later steps read the
+        previous step's output. ``free_from=None`` teacher-forces all M steps.
+        """
+        steps = audio.shape[1]
+        known = steps if free_from is None else free_from
+        if not 1 <= known <= steps or motion_in.shape[1] < known:
+            raise ValueError(f"free_from={free_from} needs 1..{steps} known steps; motion_in has {motion_in.shape[1]}")
+        state = self.core.initial_state(audio.shape[0])
+        hidden, state = self.core(self.fuse(audio[:, :known], motion_in[:, :known], style), state)
+        outputs = [self._emit(hidden, motion_in[:, :known])]
+        prev = outputs[0][:, -1:]
+        for i in range(known, steps):
+            hidden, state = self.core(self.fuse(audio[:, i:i + 1], prev, style), state)
+            prev = self._emit(hidden, prev)
+            outputs.append(prev)
+        return torch.cat(outputs, dim=1)
+
+    def generate_block(self, audio: torch.Tensor, known: torch.Tensor, style: torch.Tensor | None) -> torch.Tensor:
+        """N new frames (B, N, 7) of one inference window (D5).
+
+        ``audio`` (B, M, F) covers frames u..u+M−1 with u = t − W; ``known`` (B, W+1, 7) holds the known
+        frames x_{u−1}..x_{t−1}. The first W outputs re-predict known frames and are discarded.
+        """
+        warmup = self.cfg.warmup
+        if known.shape[1] != warmup + 1:
+            raise ValueError(f"generate_block needs W+1={warmup + 1} known frames, got {known.shape[1]}")
+        return self.forward(audio, known, style, free_from=warmup + 1)[:, warmup:]

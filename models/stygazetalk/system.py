@@ -1,0 +1,79 @@
+"""The trained StyGazeTalk system: normalisers, frozen style encoder and generator in one module.
+
+Everything inference needs is a buffer or parameter of :class:`StyGazeTalkSystem`, so one checkpoint
+file restores it (``state_dict`` + the two configs). :meth:`StyGazeTalkSystem.next_block` produces the
+N frames of one inference window (spec §2.10) from raw speech and the known motion track.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+from torch import nn
+
+from models.stygazetalk.audio import HOP, feature_dim, raw_features
+from models.stygazetalk.config import MOTION_DIM, GeneratorConfig, StyleEncoderConfig
+from models.stygazetalk.generator import MotionGenerator
+from models.stygazetalk.normalise import ZScore
+from models.stygazetalk.style_encoder import StyleEncoder
+
+
+class StyGazeTalkSystem(nn.Module):
+    def __init__(self, cfg: GeneratorConfig, se_cfg: StyleEncoderConfig | None):
+        super().__init__()
+        if cfg.style and (se_cfg is None or se_cfg.d_s != cfg.d_s or se_cfg.window != cfg.window):
+            raise ValueError(f"{cfg.name} needs a style encoder with d_s={cfg.d_s} and window M={cfg.window}")
+        self.cfg, self.se_cfg = cfg, se_cfg if cfg.style else None
+        self.motion_norm = ZScore(MOTION_DIM)
+        self.audio_norm = ZScore(feature_dim(cfg))
+        self.style_encoder = StyleEncoder(se_cfg) if cfg.style else None
+        self.generator = MotionGenerator(cfg, feature_dim(cfg))
+        if self.style_encoder is not None and cfg.freeze_style_encoder:
+            self.style_encoder.requires_grad_(False)
+
+    def train(self, mode: bool = True) -> "StyGazeTalkSystem":
+        super().train(mode)
+        if self.style_encoder is not None and self.cfg.freeze_style_encoder:
+            self.style_encoder.eval()  # D26: frozen, eval mode (no dropout) while the generator trains
+        return self
+
+    def audio_window(self, waveform: np.ndarray) -> np.ndarray:
+        """Normalised window-local features (M, F) of one window's waveform (D12, D4)."""
+        return self.audio_norm.np(raw_features(self.cfg, waveform))
+
+    def style(self, window: torch.Tensor) -> torch.Tensor | None:
+        """s = SE(window) for normalised motion windows (B, M, 7); None for the Base variant."""
+        if self.style_encoder is None:
+            return None
+        return self.style_encoder(window)
+
+    @torch.no_grad()
+    def next_block(self, waveform: np.ndarray, recent: np.ndarray, style: torch.Tensor | None = None) -> np.ndarray:
+        """The N frames (N, 7) in degrees following ``recent``.
+
+        - ``waveform``: the speech of frames u..u+M−1 (M·640 samples), u = t − W, t the first new frame.
+        - ``recent``: the most recent known frames x_{..t−1} in degrees, at least M of them (seed or
+          earlier outputs); the last W+1 are the warm-up motion inputs, the last M the style window.
+        - ``style``: a fixed style vector (style transfer) instead of SE(last M frames).
+        """
+        cfg = self.cfg
+        if recent.shape[0] < cfg.window or waveform.shape[0] != cfg.window * HOP:
+            raise ValueError(f"next_block needs >= {cfg.window} known frames and {cfg.window * HOP} samples, "
+                             f"got {recent.shape[0]} frames and {waveform.shape[0]} samples")
+        known = torch.from_numpy(self.motion_norm.np(recent[-cfg.window:]))[None]
+        audio = torch.from_numpy(self.audio_window(waveform))[None]
+        s = style if style is not None else self.style(known)
+        block = self.generator.generate_block(audio, known[:, -(cfg.warmup + 1):], s)
+        return self.motion_norm.np_inverse(block[0].numpy())
+
+    @torch.no_grad()
+    def reference_style(self, motion_deg: np.ndarray) -> torch.Tensor:
+        """Style vector of a whole reference session: the mean of SE over its windows (length M, hop N)."""
+        if self.style_encoder is None:
+            raise ValueError(f"{self.cfg.name} has no style encoder; style transfer needs an SE variant")
+        m, n = self.cfg.window, self.cfg.horizon
+        if motion_deg.shape[0] < m:
+            raise ValueError(f"a style reference needs at least M={m} frames, got {motion_deg.shape[0]}")
+        norm = self.motion_norm.np(motion_deg)
+        windows = np.stack([norm[s:s + m] for s in range(0, norm.shape[0] - m + 1, n)])
+        return self.style_encoder(torch.from_numpy(windows)).mean(dim=0, keepdim=True)

@@ -1,0 +1,143 @@
+"""Stage 2: teacher-forced generator training (spec §2.7, §2.9) with the style encoder frozen (D26).
+
+One step (own notation of the spec): a window of M+1 ground-truth frames x_{u−1..u+M−1}; inputs
+x_{u−1..u+M−2}, targets x_{u..u+M−1}; s = SE(inputs) (D7) or SE(the M frames before, "preceding");
+loss λ·MSE + (1−λ)·velocity-MSE with x_{u−1} as the predecessor of the first output (D20).
+Adam with cosine decay, gradient clipping; the weights with the lowest validation loss are kept.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import torch
+from torch.nn import functional as F
+from tqdm import tqdm
+
+from dyadbench.seeding import derive_seed
+from models.stygazetalk.audio import raw_features
+from models.stygazetalk.config import GeneratorConfig
+from models.stygazetalk.data import Segment, WindowBank, build_window_bank, stacked_motion
+from models.stygazetalk.normalise import ZScore
+from models.stygazetalk.system import StyGazeTalkSystem
+
+
+def generator_loss(pred: torch.Tensor, target: torch.Tensor, predecessor: torch.Tensor, lam: float
+                   ) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """(L_gen, L_mse, L_vel) with mean reductions (D20).
+
+    .. math:: L = \\lambda \\, \\overline{(\\hat x - x)^2} + (1 - \\lambda)\\, \\overline{(\\Delta \\hat x - \\Delta x)^2}
+
+    ``predecessor`` (B, 1, 7) is the ground-truth frame before the first output; it starts both
+    difference sequences.
+    """
+    mse = F.mse_loss(pred, target)
+    vel = F.mse_loss(torch.diff(torch.cat([predecessor, pred], 1), dim=1),
+                     torch.diff(torch.cat([predecessor, target], 1), dim=1))
+    return lam * mse + (1.0 - lam) * vel, mse, vel
+
+
+@dataclass
+class GeneratorTrainLog:
+    steps: list[int] = field(default_factory=list)
+    train_loss: list[float] = field(default_factory=list)
+    val_loss: list[float] = field(default_factory=list)
+    step0_val_loss: float = float("nan")
+    best_step: int = 0
+    best_val: float = float("inf")
+    seconds: float = 0.0
+    train_windows: int = 0
+
+
+def window_loss(system: StyGazeTalkSystem, motion: torch.Tensor, audio: torch.Tensor,
+                rollout: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Loss of a batch of bank windows: motion (B, pre+M+1, 7), audio (B, M, F), both normalised."""
+    cfg = system.cfg
+    m, pre = cfg.window, motion.shape[1] - cfg.window - 1
+    window = motion[:, pre:]  # x_{u-1} .. x_{u+M-1}
+    x_in, target = window[:, :-1], window[:, 1:]
+    style_window = x_in if cfg.style_input == "motion-window" else motion[:, :m]
+    style = system.style(style_window)
+    pred = system.generator(audio, x_in, style, free_from=cfg.warmup + 1 if rollout else None)
+    first = 0 if cfg.loss_outputs == "all" else cfg.warmup  # D8
+    return generator_loss(pred[:, first:], target[:, first:], x_in[:, first:first + 1], cfg.lam)
+
+
+def banks_for(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment]) -> tuple[WindowBank, WindowBank]:
+    cfg = system.cfg
+    pre = cfg.window if cfg.style_input == "preceding" else 0
+    kwargs = dict(window=cfg.window, pre=pre, motion_norm=system.motion_norm.np,
+                  audio_features=system.audio_window)
+    return (build_window_bank(train, stride=cfg.feature_grid_stride, desc="train windows", **kwargs),
+            build_window_bank(val, stride=cfg.horizon, desc="val windows", **kwargs))
+
+
+def fit_audio_norm(system: StyGazeTalkSystem, train: list[Segment]) -> None:
+    """Audio z-score statistics from the whole train segments' features (D13)."""
+    rows = np.concatenate([raw_features(system.cfg, s.audio) for s in train])
+    system.audio_norm.load_state_dict(ZScore.fit(rows).state_dict())
+
+
+def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
+    system.eval()
+    total, n = 0.0, 0
+    with torch.no_grad():
+        for lo in range(0, len(bank), batch):
+            motion = torch.from_numpy(bank.motion[lo:lo + batch])
+            loss = window_loss(system, motion, torch.from_numpy(bank.audio[lo:lo + batch]))[0]
+            total += loss.item() * motion.shape[0]
+            n += motion.shape[0]
+    return total / n
+
+
+def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment], *,
+                    progress: bool = True) -> GeneratorTrainLog:
+    """Train ``system.generator`` in place (normalisers and style encoder must already be set)."""
+    cfg = system.cfg
+    torch.manual_seed(derive_seed("stygazetalk-generator", cfg.seed))
+    if system.style_encoder is None:  # Base: no stage-1 checkpoint carries the statistics
+        system.motion_norm.load_state_dict(ZScore.fit(stacked_motion(train)).state_dict())
+    fit_audio_norm(system, train)
+    train_bank, val_bank = banks_for(system, train, val)
+    rng = np.random.default_rng(derive_seed("stygazetalk-generator-batches", cfg.seed))
+    params = [p for p in system.generator.parameters() if p.requires_grad]
+    opt = torch.optim.Adam(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
+    sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: _cosine(k, cfg))
+    log = GeneratorTrainLog(train_windows=len(train_bank))
+    log.step0_val_loss = _val_loss(system, val_bank, cfg.batch)
+    best_state, start = None, time.perf_counter()
+    for step in tqdm(range(1, cfg.steps + 1), desc=f"generator {cfg.name}", disable=not progress or None):
+        system.train()
+        idx = rng.integers(0, len(train_bank), size=cfg.batch)
+        rollout = cfg.rollout_prob > 0 and rng.random() < cfg.rollout_prob
+        loss = window_loss(system, torch.from_numpy(train_bank.motion[idx]), torch.from_numpy(train_bank.audio[idx]),
+                           rollout=rollout)[0]
+        opt.zero_grad()
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(params, cfg.grad_clip)
+        opt.step()
+        sched.step()
+        if step % cfg.val_every == 0 or step == cfg.steps:
+            val = _val_loss(system, val_bank, cfg.batch)
+            log.steps.append(step)
+            log.train_loss.append(float(loss.item()))
+            log.val_loss.append(val)
+            if val < log.best_val:
+                log.best_val, log.best_step = val, step
+                best_state = {k: v.clone() for k, v in system.state_dict().items()}
+    system.load_state_dict(best_state)
+    system.eval()
+    log.seconds = time.perf_counter() - start
+    return log
+
+
+def _cosine(step: int, cfg: GeneratorConfig) -> float:
+    """LR multiplier: cosine decay from lr to lr_min over the run (D27)."""
+    if cfg.lr_schedule != "cosine":
+        return 1.0
+    frac = min(step / max(cfg.steps, 1), 1.0)
+    floor = cfg.lr_min / cfg.lr
+    return floor + (1.0 - floor) * 0.5 * (1.0 + math.cos(math.pi * frac))
