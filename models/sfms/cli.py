@@ -71,10 +71,13 @@ def _common(f):
         click.option("--clips", type=int, default=None, help="Use only the first N train clips (quick runs)."),
         click.option("--val-frac", type=float, default=0.1, show_default=True,
                      help="Fraction of train clips held out for validation / best-checkpoint selection."),
+        click.option("--val-windows", type=int, default=512, show_default=True,
+                     help="Validation windows scored at each validation (best-checkpoint selection)."),
         click.option("--steps", type=int, default=None, help="Training steps (default: the preset's)."),
         click.option("--batch", type=int, default=None, help="Windows per step (default: the preset's)."),
         click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random choice."),
-        click.option("--threads", type=int, default=2, show_default=True, help="torch CPU threads."),
+        click.option("--threads", type=int, default=1, show_default=True,
+                     help="torch CPU threads (1 is fastest on a shared, busy CPU)."),
         click.option("--device", default="cpu", show_default=True, help="cpu or cuda (one GPU per process)."),
         click.option("--out", type=click.Path(path_type=Path), required=True, help="Checkpoint file to write."),
     ]
@@ -99,7 +102,7 @@ def _write_log(out: Path, history: dict) -> Path:
 @click.option("--keyframe-mode", type=click.Choice(["dynamic", "static", "dense"]), default=None,
               help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
 @click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")
-def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, steps, batch, seed, threads, device, out,
+def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads, device, out,
                     keyframes, keyframe_mode, quantizer) -> None:
     """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
 
@@ -119,8 +122,8 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, steps, ba
         train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
         mean, std = motion_stats(clip_motions(train))
         norm = [(a - mean) / std for a in clip_motions(train)]
-        val_windows = eval_windows([(a - mean) / std for a in clip_motions(val)], cfg.window)
-        model, history = fit_tokenizer(cfg, norm, val_windows, motion_mean=mean, motion_std=std,
+        val_set = eval_windows([(a - mean) / std for a in clip_motions(val)], cfg.window, limit=val_windows)
+        model, history = fit_tokenizer(cfg, norm, val_set, motion_mean=mean, motion_std=std,
                                        seed=seed + world.rank, world=world)
         if world.main:
             meta = {"model": TOKENIZER_MODEL, "preset": preset, "seed": seed, "data": describe,
@@ -138,7 +141,7 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, steps, ba
 @_common
 @click.option("--tokenizer", "tokenizer_path", type=click.Path(path_type=Path, exists=True, dir_okay=False),
               required=True, help="Stage-1 checkpoint from `dyadbench train sfms-tokenizer`.")
-def train_predictor(preset, overrides, dataset, root, clips, val_frac, steps, batch, seed, threads, device, out,
+def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads, device, out,
                     tokenizer_path) -> None:
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
 
@@ -161,7 +164,7 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, steps, ba
         model, history = fit_predictor(
             cfg, tokenizer, normalise_directed(raw_train, mm, ms, audio_mean, audio_std),
             normalise_directed(raw_val, mm, ms, audio_mean, audio_std), audio_mean=audio_mean,
-            audio_std=audio_std, seed=seed + world.rank, world=world)
+            audio_std=audio_std, seed=seed + world.rank, world=world, val_windows=val_windows)
         if world.main:
             meta = {"model": PREDICTOR_MODEL, "preset": preset, "seed": seed, "data": describe,
                     "tokenizer": str(tokenizer_path), "best_val_ce": history["best_val_ce"],
