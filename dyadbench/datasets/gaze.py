@@ -28,7 +28,8 @@ from __future__ import annotations
 
 import csv
 import io
-from dataclasses import dataclass, field
+import sys
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -36,6 +37,7 @@ import numpy as np
 from dyadbench import atomic
 from dyadbench.arrays import check_motion, load_npz
 from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.validation import ValidationReport
 from dyadbench.datasets.wav import read_wav, write_wav
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, GAZE7, SAMPLE_RATE
@@ -269,7 +271,9 @@ def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
         raise ConfigError(f"unknown synthetic gaze split {split!r} (known: {', '.join(SPLITS)})")
     root = synthetic_root() if root is None else Path(root)
     marker = root / split / ".complete.json"
-    if not marker.is_file():
+    if not marker.is_file():  # absent or interrupted: (re)write; every file is written atomically
+        print(f"dyadbench: generating the synthetic gaze-head {split} split (seed {SYNTHETIC_SEED}) into "
+              f"{root / split} (first use only)", file=sys.stderr)
         summary = write_gaze_split(root, split=split, seed=SYNTHETIC_SEED)
         atomic.write_json(marker, summary)
     source = GazeSource(root, split)
@@ -279,33 +283,15 @@ def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
 
 # --- validation and description ------------------------------------------------------------------------
 
-@dataclass
-class GazeValidation:
-    """Outcome of :func:`validate_folder`: ``ok`` when no error; every message names its file."""
-
-    folder: str
-    errors: list[str] = field(default_factory=list)
-    warnings: list[str] = field(default_factory=list)
-    checked: int = 0
-
-    @property
-    def ok(self) -> bool:
-        return not self.errors
-
-    def summary(self) -> str:
-        head = f"{self.folder}: {self.checked} sessions checked, {len(self.errors)} errors, {len(self.warnings)} warnings"
-        return "\n".join([head] + [f"error: {e}" for e in self.errors] + [f"warning: {w}" for w in self.warnings])
-
-
-def validate_folder(folder: Path) -> GazeValidation:
+def validate_folder(folder: Path) -> ValidationReport:
     """Check a gaze–head root (or split folder): index, every session's npz and wav, lengths, ranges."""
     folder = Path(folder)
-    report = GazeValidation(str(folder))
+    report = ValidationReport(str(folder), "gaze")
     try:
         root, only_split = resolve_root(folder, None)
         rows = read_index(root)
-    except (InputError, ConfigError) as exc:
-        report.errors.append(str(exc))
+    except InputError as exc:
+        report.add(exc)
         return report
     if (folder / INDEX).is_file():
         only_split = None
@@ -325,17 +311,17 @@ def validate_folder(folder: Path) -> GazeValidation:
             fit_audio(audio, len(data.motion), wav)
             keep = keep_mask(data)
             if not keep.all():
-                report.warnings.append(f"{npz}: {int((~keep).sum())} of {len(keep)} frames will be dropped "
-                                       f"(|angle| > {ANGLE_LIMIT_DEG:g}°, NaN or valid=False)")
+                report.warn(npz, f"{int((~keep).sum())} of {len(keep)} frames will be dropped "
+                                 f"(|angle| > {ANGLE_LIMIT_DEG:g}°, NaN or valid=False)")
             if not segments(keep):
-                report.errors.append(f"{npz}: no run of {MIN_SEGMENT_FRAMES} usable frames")
+                report.error(npz, f"no run of {MIN_SEGMENT_FRAMES} usable frames")
         except InputError as exc:
-            report.errors.append(str(exc))
+            report.add(exc)
     splits = {only_split} if only_split else {r["split"] for r in rows}
     for split in sorted(splits):
         for npz in sorted((root / split).glob("*.npz")):
             if npz not in listed:
-                report.warnings.append(f"{npz}: not listed in {root / INDEX}; it is ignored")
+                report.warn(npz, f"not listed in {root / INDEX}; it is ignored")
     return report
 
 
