@@ -95,10 +95,14 @@ def test_head_only_motion_with_still_eyes():
     assert gaze.comp_score([sweep(head_py=(0.3, 0.4))]) == pytest.approx(-0.5)
     # h = 30 deg/frame with still eyes: |g| = 30 is in the shift band but e = 0, the angle is undefined -> 0
     assert gaze.comp_score([sweep(head_py=(0.0, 30.0))]) == 0.0
-    # roll is not part of h
+    # roll is not part of h, unless asked for in the -|h| branch: |(0, 0.3, 0.4)| = 0.5
     m = np.zeros((11, 7))
     m[:, 2] = 5.0 * np.arange(11)
     assert gaze.comp_score([m]) == 0.0
+    m = sweep(head_py=(0.0, 0.3))
+    m[:, 2] = 0.4 * np.arange(11)
+    assert gaze.comp_score([m]) == pytest.approx(-0.3)
+    assert gaze.comp_score([m], include_roll=True) == pytest.approx(-0.5)
 
 
 def test_shift_band_cases():

@@ -161,7 +161,8 @@ def fix_ratio(sequences: list[np.ndarray], **idt_params) -> float:
 
 def compensation_frames(motion: np.ndarray, *, velocity_unit: str = "deg_per_frame", fps: float = 25.0,
                         stable_below: float = COMP_STABLE_BELOW,
-                        shift_band: tuple[float, float] = COMP_SHIFT_BAND, name: str = "motion") -> np.ndarray:
+                        shift_band: tuple[float, float] = COMP_SHIFT_BAND, include_roll: bool = False,
+                        name: str = "motion") -> np.ndarray:
     """Per-velocity-frame compensation score (T-1,), paper eq. 6, with 2-D (pitch, yaw) vectors.
 
     h_t = head (pitch, yaw) velocity; e_t = mean of the two eyes' (pitch, yaw) velocities; g_t = e_t + h_t:
@@ -170,7 +171,8 @@ def compensation_frames(motion: np.ndarray, *, velocity_unit: str = "deg_per_fra
     - score_t = -cos θ(h_t, e_t)  if 25 <= ‖g_t‖ <= 90 (``shift_band``); 0 if ‖h_t‖ or ‖e_t‖ is 0
     - score_t = 0                 otherwise (the 20–25 gap included)
 
-    Velocities in °/frame (``velocity_unit="deg_per_frame"``) or °/s (× ``fps``). Head roll is excluded.
+    Velocities in °/frame (``velocity_unit="deg_per_frame"``) or °/s (× ``fps``). Head roll is excluded
+    (``include_roll=True``: ‖h_t‖ of the first branch includes the roll velocity; g and θ stay 2-D).
     Eyes counter-rotating the head (VOR, cos θ = -1) score +1; eyes and head moving together score -1.
     """
     if velocity_unit not in VELOCITY_UNITS:
@@ -182,10 +184,11 @@ def compensation_frames(motion: np.ndarray, *, velocity_unit: str = "deg_per_fra
     e = 0.5 * (v[:, LEFT_EYE] + v[:, RIGHT_EYE])
     g = e + h
     h_norm, e_norm, g_norm = (np.linalg.norm(a, axis=1) for a in (h, e, g))
+    stable_cost = np.linalg.norm(v[:, 0:3], axis=1) if include_roll else h_norm
     denom = h_norm * e_norm
     cos = np.divide(np.sum(h * e, axis=1), denom, out=np.zeros_like(denom), where=denom > 0)
     low, high = shift_band
-    return np.where(g_norm < stable_below, -h_norm,
+    return np.where(g_norm < stable_below, -stable_cost,
                     np.where((g_norm >= low) & (g_norm <= high), -cos, 0.0))
 
 

@@ -49,6 +49,7 @@ class GazeSuiteConfig:
     idt_eyes: str = "pooled"  # or "cyclopean"
     idt_include_breaking_sample: bool = False  # True: pymovements' variant
     comp_velocity_unit: str = "deg_per_frame"  # or "deg_per_s"
+    comp_include_roll: bool = False  # True: roll counts in the -|h| branch
     bas_order_s: float = beats.ORDER_S
     bas_sigma_s: float = beats.SIGMA_S
     bas_min_speed: float = 0.0
@@ -114,7 +115,8 @@ def _score_item(task: _Task) -> dict:
     for who, motion in (("pred", pred), ("gt", gt)):
         labels = gaze.fixation_labels(motion, name=f"{item.stem} ({who})", **cfg.idt())
         counts[f"{who}_fix"], counts[f"{who}_sac"] = fixation_counts(labels)
-        comp = gaze.compensation_frames(motion, velocity_unit=cfg.comp_velocity_unit, fps=item.fps)
+        comp = gaze.compensation_frames(motion, velocity_unit=cfg.comp_velocity_unit, fps=item.fps,
+                                        include_roll=cfg.comp_include_roll)
         counts[f"{who}_comp_sum"], counts[f"{who}_comp_n"] = float(comp.sum()), len(comp)
     fix = counts["pred_fix"] / max(1, counts["pred_fix"] + counts["pred_sac"])
     gt_fix = counts["gt_fix"] / max(1, counts["gt_fix"] + counts["gt_sac"])
