@@ -72,6 +72,8 @@ def test_reference_rows_order_as_expected(clips, gt_report):
     # the still output has no motion beats: BAS is NaN, with the reason in the notes
     assert np.isnan(static.metrics["bas_head"])
     assert any("BAS head: no motion beats" in n for n in static.notes)
+    assert all("no motion beats" in row["bas_note_head"] for row in static.per_item)
+    assert "bas_note_head" not in gt_report.per_item[0]
 
 
 def test_seed_frames_are_excluded(clips):

@@ -163,6 +163,7 @@ def _add_bas(results: list[dict], cfg: GazeSuiteConfig, seed: int, notes: list[s
                 mb = b[f"{who}_{group}"]
                 reason = beats.empty_reason(len(mb), len(b["onsets"]))
                 if reason and who == "pred":
+                    row[f"bas_note_{group}"] = reason
                     key = f"{group}: {reason}"
                     empty[key] = empty.get(key, 0) + 1
                 for direction, tag in (("m2a", ""), ("a2m", "_a2m")):
@@ -234,7 +235,7 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config
     for row in per_item:
         row["sim_gt_seq"] = row.pop("sim_gt")
     keys = dict.fromkeys(k for row in per_item for k in row
-                         if k not in NOT_METRICS and not k.startswith("motion_beats_"))
+                         if k not in NOT_METRICS and not k.startswith(("motion_beats_", "bas_note_")))
     metrics = {k: _nanmean([row.get(k, float("nan")) for row in per_item]) for k in keys}
     if results:
         total = {k: sum(r["counts"][k] for r in results) for k in results[0]["counts"]}
