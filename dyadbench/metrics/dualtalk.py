@@ -176,7 +176,7 @@ def sts(p: np.ndarray, g: np.ndarray) -> float:
               \\frac{\\big((p_{t,j}-p_{t-1,j})-(g_{t,j}-g_{t-1,j})\\big)^2}{0.1}}
     """
     diff = np.diff(p, axis=0) - np.diff(g, axis=0)
-    return float(np.sqrt(np.sum(diff ** 2) / STS_SCALE))
+    return float(np.sqrt(np.sum(diff ** 2 / STS_SCALE)))
 
 
 def variance(x: np.ndarray) -> float:
