@@ -1,0 +1,270 @@
+"""The REACT 2023/2024 metric suite on 25-d emotion features: FRCorr, FRDist, FRDiv, FRVar, FRDvs, FRSyn.
+
+Inputs (see ``metrics-react.md``): predictions P (N, R, T, 25) with R reactions per speaker sample,
+listener ground truth L (N, T, 25), speaker ground truth Sp (N, T, 25), all in the same (mirrored)
+sample order, and the appropriateness matrix S (N, N): ``S[k, j] == 1`` means the real listener
+reaction of sample j is appropriate for speaker k. Feature columns: 0-14 action units, 15-16 valence
+and arousal, 17-24 expression probabilities.
+
+Like the official pipeline, which holds every array as float32, all inputs are rounded to float32;
+the arithmetic is then float64. Each metric matches the official scripts to round-off (about 1e-12
+relative for FRCorr/FRDist/FRDiv/FRVar/FRDvs against a float64 evaluation of the same formulas; the
+official float32 ``torch.cdist`` of FRDiv/FRDvs and float32 statistics of FRCorr differ from it by up
+to ~1e-6 relative). FRSyn is an average of integer offsets and matches exactly.
+
+FRRea (FID of rendered frames) needs FaceVerse, PIRender and the videos: it is not computed here and
+is reported as such by the scorer (:data:`NOT_COMPUTED`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from dyadbench.errors import InputError
+from dyadbench.metrics.ccc import max_ccc_over_neighbours
+from dyadbench.metrics.dtw import min_weighted_dtw
+from dyadbench.metrics.tlcc import float32_mean, tlcc_offsets
+
+DIM = 25
+REACTIONS = 10
+FRAMES = 750
+#: FRDist's DTW groups: (start, stop, weight) = AUs, valence/arousal, expression probabilities
+DTW_GROUPS = ((0, 15, 1 / 15), (15, 17, 1.0), (17, 25, 1 / 8))
+#: rows of the prediction array processed at once (bounds memory to ~chunk * R * T * 25 float64)
+ROW_CHUNK = 64
+
+
+@dataclass(frozen=True)
+class MetricInfo:
+    name: str
+    higher_is_better: bool
+    description: str
+
+
+METRICS: tuple[MetricInfo, ...] = (
+    MetricInfo("FRCorr", True, "appropriateness: sum over the R reactions of the max CCC with an appropriate "
+                               "real reaction, mean over speakers (range about [-R, R])"),
+    MetricInfo("FRDist", False, "appropriateness: sum over the R reactions of the min grouped DTW to an "
+                                "appropriate real reaction, mean over speakers"),
+    MetricInfo("FRDiv", True, "diversity among the R reactions to one speaker (S-MSE)"),
+    MetricInfo("FRVar", True, "mean variance over time of every predicted feature (ddof=1)"),
+    MetricInfo("FRDvs", True, "diversity of reaction i across speakers"),
+    MetricInfo("FRSyn", False, "synchrony: mean |TLCC offset| in frames of reaction 0 to the speaker "
+                               "(official)"),
+    MetricInfo("FRSyn_all", False, "synchrony over all R reactions (the official serial variant)"),
+)
+METRIC_INFO = {m.name: m for m in METRICS}
+KEYS = tuple(m.name for m in METRICS)
+HIGHER_IS_BETTER = {m.name: m.higher_is_better for m in METRICS}
+NOT_COMPUTED = {"FRRea": "realism (FID of rendered frames) needs FaceVerse, PIRender and the videos; "
+                         "dyadbench scores the 25-d emotion features only"}
+
+
+# --- validation -----------------------------------------------------------------------------------
+
+def _as_float32(array, name: str, ndim: int) -> np.ndarray:
+    a = np.asarray(array)
+    if a.ndim != ndim or a.shape[-1] != DIM:
+        want = "(N, R, T, 25)" if ndim == 4 else "(N, T, 25)"
+        raise InputError(name, f"expected {want}, got shape {a.shape}")
+    if a.dtype.kind not in "fiu":
+        raise InputError(name, f"expected real numbers, got dtype {a.dtype}")
+    a = a.astype(np.float32)
+    bad = a.size - int(np.count_nonzero(np.isfinite(a)))
+    if bad:
+        first = np.argwhere(~np.isfinite(a))[0]
+        raise InputError(name, f"contains {bad} NaN/inf values (first at index {tuple(int(i) for i in first)})")
+    return a
+
+
+def neighbour_lists(neighbours: np.ndarray, name: str = "neighbours") -> tuple[np.ndarray, np.ndarray]:
+    """CSR form (indptr, indices) of ``neighbours == 1``; a row without any neighbour is an error."""
+    s = np.asarray(neighbours)
+    if s.ndim != 2 or s.shape[0] != s.shape[1]:
+        raise InputError(name, f"expected a square (N, N) matrix, got shape {s.shape}")
+    selected = s == 1
+    counts = selected.sum(axis=1)
+    empty = np.flatnonzero(counts == 0)
+    if len(empty):
+        rows = ", ".join(str(int(r)) for r in empty[:10]) + (" …" if len(empty) > 10 else "")
+        raise InputError(name, f"{len(empty)} row(s) have no neighbour (no entry equal to 1): row {rows}")
+    indptr = np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
+    return indptr, np.nonzero(selected)[1].astype(np.int64)
+
+
+def check_inputs(predictions, listener, speaker, neighbours, reactions: int | None = REACTIONS):
+    """Validate shapes/values; return (P, L, Sp) float32 and the neighbour lists (indptr, indices)."""
+    p = _as_float32(predictions, "predictions", 4)
+    lst = _as_float32(listener, "listener", 3)
+    sp = _as_float32(speaker, "speaker", 3)
+    n, r, t, _ = p.shape
+    if reactions is not None and r != reactions:
+        raise InputError("predictions", f"expected {reactions} reactions per sample (axis 1), got {r}")
+    if n == 0 or t < 2:
+        raise InputError("predictions", f"need at least one sample and 2 frames, got shape {p.shape}")
+    for name, a in (("listener", lst), ("speaker", sp)):
+        if a.shape != (n, t, DIM):
+            raise InputError(name, f"expected shape {(n, t, DIM)} to match the predictions, got {a.shape}")
+    if np.shape(neighbours) != (n, n):
+        raise InputError("neighbours", f"expected shape {(n, n)} for {n} samples, got {np.shape(neighbours)}")
+    return p, lst, sp, neighbour_lists(neighbours)
+
+
+# --- metrics ----------------------------------------------------------------------------------------
+
+def _row_chunks(n: int):
+    for start in range(0, n, ROW_CHUNK):
+        yield slice(start, min(start + ROW_CHUNK, n))
+
+
+def _sum_over_reactions(per_reaction: np.ndarray) -> np.ndarray:
+    """(N, R) -> (N,): sum over reactions in order, as the reference's ``+=`` loop."""
+    total = np.zeros(per_reaction.shape[0])
+    for i in range(per_reaction.shape[1]):
+        total = total + per_reaction[:, i]
+    return total
+
+
+def _chunk_indptr(indptr: np.ndarray, rows: slice, reactions: int) -> tuple[np.ndarray, np.ndarray]:
+    """Candidate lists of the queries (k, i) of rows k in ``rows``: each row's list repeated R times."""
+    counts = np.repeat(np.diff(indptr[rows.start:rows.stop + 1]), reactions)
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), counts
+
+
+def fr_corr_per_reaction(p, lst, indptr, indices) -> np.ndarray:
+    """(N, R): max over appropriate real reactions j of CCC(L[j], P[k, i])."""
+    out = np.empty(p.shape[:2])
+    for rows in _row_chunks(len(p)):
+        sub_ptr = indptr[rows.start:rows.stop + 1]
+        out[rows] = max_ccc_over_neighbours(p[rows], lst, sub_ptr - sub_ptr[0],
+                                            indices[sub_ptr[0]:sub_ptr[-1]])
+    return out
+
+
+def fr_corr(p, lst, indptr, indices) -> float:
+    """FRCorr (higher is better).
+
+    .. math:: \\mathrm{FRCorr} = \\frac{1}{N}\\sum_k \\sum_{i=0}^{R-1}
+              \\max_{j: S_{kj}=1} \\mathrm{CCC}(L_j, P_{k,i})
+    """
+    return float(np.mean(_sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))))
+
+
+def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = True, threads: int | None = None,
+                         progress=None) -> np.ndarray:
+    """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
+    n, r = p.shape[:2]
+    out = np.empty((n, r))
+    refs = lst.astype(np.float64)
+    for rows in _row_chunks(n):
+        ptr, counts = _chunk_indptr(indptr, rows, r)
+        cand = np.concatenate([np.tile(indices[indptr[k]:indptr[k + 1]], r) for k in range(rows.start, rows.stop)])
+        queries = p[rows].astype(np.float64).reshape(-1, p.shape[2], DIM)
+        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, prune=prune, threads=threads)
+        out[rows] = values.reshape(-1, r)
+        if progress is not None:
+            progress(rows.stop - rows.start)
+    return out
+
+
+def fr_dist(p, lst, indptr, indices, *, prune: bool = True, threads: int | None = None) -> float:
+    """FRDist (lower is better).
+
+    .. math:: \\mathrm{FRDist} = \\frac{1}{N}\\sum_k \\sum_i \\min_{j: S_{kj}=1}
+              \\Big(\\tfrac{1}{15}\\mathrm{DTW}(P^{AU}_{k,i}, L^{AU}_j) + \\mathrm{DTW}(P^{VA}_{k,i}, L^{VA}_j)
+              + \\tfrac18\\mathrm{DTW}(P^{FE}_{k,i}, L^{FE}_j)\\Big)
+
+    with exact DTW (:mod:`dyadbench.metrics.dtw`), one warping path per group.
+    """
+    per = fr_dist_per_reaction(p, lst, indptr, indices, prune=prune, threads=threads)
+    return float(np.mean(_sum_over_reactions(per)))
+
+
+def ordered_pair_sq_sum(stack: np.ndarray) -> np.ndarray:
+    """sum over ordered pairs a != b of |s_a - s_b|^2 along axis 1 of ``stack`` (B, n, F) -> (B,).
+
+    Uses the identity sum_{a != b} |s_a - s_b|^2 = 2 n sum_a |s_a - mean|^2 on values shifted by s_0
+    (exactly 0 when all members are equal).
+    """
+    shifted = stack.astype(np.float64) - stack[:, :1].astype(np.float64)
+    dev = shifted - shifted.mean(axis=1, keepdims=True)
+    return 2.0 * stack.shape[1] * np.einsum("bnf,bnf->b", dev, dev)
+
+
+def fr_div(p) -> float:
+    """FRDiv / S-MSE (higher is better); 0 when R == 1.
+
+    .. math:: \\mathrm{FRDiv} = \\frac{1}{N}\\sum_k \\frac{\\sum_{i \\ne j}\\lVert P_{k,i} - P_{k,j}\\rVert^2}
+              {R(R-1)\\,T\\cdot 25}
+    """
+    n, r, t, d = p.shape
+    if r == 1:
+        return 0.0
+    per = np.concatenate([ordered_pair_sq_sum(p[rows].reshape(rows.stop - rows.start, r, t * d))
+                          for rows in _row_chunks(n)])
+    return float(np.mean(per / (r * (r - 1) * t * d)))
+
+
+def fr_var(p) -> float:
+    """FRVar (higher is better): mean over samples, reactions and features of the variance over time.
+
+    .. math:: \\mathrm{FRVar} = \\frac{1}{N R\\, 25}\\sum_{k,i,c} \\frac{1}{T-1}\\sum_t
+              (P_{k,i,t,c} - \\bar P_{k,i,c})^2
+    """
+    parts = [np.var(p[rows].astype(np.float64), axis=2, ddof=1) for rows in _row_chunks(len(p))]
+    return float(np.mean(np.concatenate(parts)))
+
+
+def fr_dvs(p) -> float:
+    """FRDvs (higher is better): diversity of reaction i across speaker samples.
+
+    .. math:: \\mathrm{FRDvs} = \\frac{\\sum_i \\sum_{k \\ne l}\\lVert P_{k,i} - P_{l,i}\\rVert^2}
+              {N(N-1)\\,R\\;T\\cdot 25}
+    """
+    n, r, t, d = p.shape
+    if n == 1:
+        return 0.0
+    total = sum(float(ordered_pair_sq_sum(p[:, i].reshape(1, n, t * d))[0]) for i in range(r))
+    return total / (n * (n - 1) * r) / (t * d)
+
+
+def fr_syn_offsets(p, sp, *, all_reactions: bool) -> np.ndarray:
+    """TLCC offsets (N,) of reaction 0, or (N, R) of every reaction, against the speaker."""
+    if not all_reactions:
+        return tlcc_offsets(p[:, 0], sp)
+    n, r = p.shape[:2]
+    return tlcc_offsets(p.reshape(n * r, *p.shape[2:]), np.repeat(sp, r, axis=0)).reshape(n, r)
+
+
+def fr_syn(p, sp, *, all_reactions: bool = False) -> float:
+    """FRSyn (lower is better): float32 mean of TLCC offsets (:mod:`dyadbench.metrics.tlcc`).
+
+    Official (default): reaction 0 only, one offset per speaker sample (the official parallel function
+    returns inside its loop). ``all_reactions=True``: every reaction (the official serial function).
+    """
+    return float32_mean(fr_syn_offsets(p, sp, all_reactions=all_reactions).ravel())
+
+
+def score(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
+          prune: bool = True, threads: int | None = None) -> dict[str, float]:
+    """Every metric of the suite: a dict keyed ``FRCorr FRDist FRDiv FRVar FRDvs FRSyn FRSyn_all``.
+
+    ``predictions`` (N, R, T, 25), ``listener`` and ``speaker`` (N, T, 25), ``neighbours`` (N, N) of 0/1.
+    Raises :class:`InputError` for wrong shapes, a wrong R (``reactions=None`` accepts any), NaN/inf
+    values, or a neighbour row without any 1 (naming the row). ``prune`` and ``threads`` only change
+    FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist and
+    FRSyn (see :data:`HIGHER_IS_BETTER`).
+    """
+    p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
+    return {
+        "FRCorr": fr_corr(p, lst, indptr, indices),
+        "FRDist": fr_dist(p, lst, indptr, indices, prune=prune, threads=threads),
+        "FRDiv": fr_div(p),
+        "FRVar": fr_var(p),
+        "FRDvs": fr_dvs(p),
+        "FRSyn": fr_syn(p, sp),
+        "FRSyn_all": fr_syn(p, sp, all_reactions=True),
+    }
+
