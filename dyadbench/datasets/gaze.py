@@ -260,7 +260,10 @@ def open_split(root: Path | None, split: str) -> GazeSource:
 
 
 def synthetic_root() -> Path:
-    return cache_dir() / f"synthetic-gaze-v{SYNTHETIC_VERSION}-seed{SYNTHETIC_SEED}"
+    """``<cache>/synthetic-gaze-v<gaze generator>.<speech generator>-seed0``: new versions never reuse old files."""
+    from dyadbench.synth.styles import GENERATOR_VERSION
+
+    return cache_dir() / f"synthetic-gaze-v{SYNTHETIC_VERSION}.{GENERATOR_VERSION}-seed{SYNTHETIC_SEED}"
 
 
 def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
