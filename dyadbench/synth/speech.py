@@ -28,7 +28,7 @@ from dyadbench.synth.styles import Style
 from dyadbench.synth.timeline import Track
 
 FINE_RATE = 400  # Hz
-TABLE_SIZE = 1024
+TABLE_SIZE = 4096
 NOISE_FLOOR = 1e-3  # RMS of the silence floor (-60 dBFS)
 NOISE_TABLE_SIZE = 1 << 20
 BURST_GAIN, BURST_DECAY_S = 0.25, 0.01  # consonant noise burst at each syllable onset

@@ -1,0 +1,117 @@
+"""Time to generate a DualTalk-sized synthetic test split (533 dialogues, mean ~31 s), in memory and on disk.
+
+Rows:
+- in memory: ``make_clips("test", 533)`` in one process;
+- on disk: ``write_dualtalk_split`` (wav + npz + synthetic.json) with ``--jobs 1`` and ``--jobs 2``;
+- reference: the same generator with the speech oscillator written the straightforward way (every
+  harmonic an ``np.sin`` over every sample, instead of one wavetable lookup). It runs on the first
+  ``--reference-clips`` dialogues and its clips/s is compared with the wavetable's; the max abs audio
+  difference between the two oscillators is printed (wavetable lookup vs exact sines).
+
+    python benchmarks/bench_synth.py                 # 533 dialogues
+    python benchmarks/bench_synth.py --clips 100     # quick look
+
+Goal: the full test split in under 60 s on a 2-core machine.
+"""
+
+from __future__ import annotations
+
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+from unittest import mock
+
+import click
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from dyadbench.synth import speech  # noqa: E402
+from dyadbench.synth.corpus import make_clips  # noqa: E402
+from dyadbench.synth.writers import write_dualtalk_split  # noqa: E402
+
+
+def additive_synthesise(r, style, env, f0, vowel, burst, phrases, n_samples, sample_rate):
+    """speech._synthesise with the oscillator as a plain sum of sines (same random draws, same signal)."""
+    step = sample_rate // speech.FINE_RATE
+    audio = speech._noise(r, n_samples) * np.float32(speech.NOISE_FLOOR)
+    tables = speech.wavetables(style, sample_rate)
+    # harmonic amplitudes of each table: its FFT (the tables are sums of sin(k * phase))
+    spectra = [np.fft.rfft(t)[1:] for t in tables]
+    n_harm = int(min(40, (0.45 * sample_rate) / style.f0_base))
+    for start, end in phrases:
+        k0, k1 = int(start * speech.FINE_RATE), min(len(env), int(np.ceil(end * speech.FINE_RATE)) + 1)
+        if k1 <= k0:
+            continue
+        s0, s1 = k0 * step, k1 * step
+        inc = f0[k0:k1] / speech.FINE_RATE
+        phase0 = (np.cumsum(inc) - inc + r.random()) % 1.0
+        frac = np.arange(step) / step
+        phase = (phase0[:, None] + inc[:, None] * frac[None, :]).reshape(-1)
+        vow = speech.upsample_linear(vowel[k0:k1], step)
+        voiced = np.zeros(s1 - s0)
+        for k in range(1, n_harm + 1):
+            amp_a = -2 * spectra[0][k - 1].imag / speech.TABLE_SIZE
+            amp_i = -2 * spectra[1][k - 1].imag / speech.TABLE_SIZE
+            voiced += (amp_a + (amp_i - amp_a) * vow) * np.sin(2 * np.pi * k * phase)
+        voiced *= speech.upsample_linear(env[k0:k1], step)
+        voiced += speech.upsample_linear(burst[k0:k1], step) * speech._noise(r, s1 - s0)
+        audio[s0:s1] += (style.loudness * voiced).astype(np.float32)
+    return speech.pcm16_to_float(speech.float_to_pcm16(audio))
+
+
+def timed(fn):
+    start = time.perf_counter()
+    out = fn()
+    return out, time.perf_counter() - start
+
+
+@click.command()
+@click.option("--clips", default=533, show_default=True, help="Dialogues in the split (DualTalk test: 533).")
+@click.option("--reference-clips", default=20, show_default=True, help="Dialogues the reference oscillator runs on.")
+@click.option("--seed", default=0, show_default=True, help="Generator seed.")
+def main(clips: int, reference_clips: int, seed: int) -> None:
+    os.environ.setdefault("OMP_NUM_THREADS", "1")
+    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; load average "
+          f"{os.getloadavg()[0]:.1f}")
+    memory, t_memory = timed(lambda: make_clips("test", clips, seed))
+    seconds = np.array([c.duration_s for c in memory])
+    del memory
+    rows = [("in memory (wavetable), 1 process", clips, t_memory)]
+    tmp = Path(tempfile.mkdtemp(prefix="bench-synth-"))
+    try:
+        for jobs in (1, 2):
+            _, t = timed(lambda: write_dualtalk_split(tmp / f"j{jobs}", split="test", clips=clips, seed=seed,
+                                                      jobs=jobs, progress=False))
+            rows.append((f"written to disk, --jobs {jobs}", clips, t))
+        size = sum(p.stat().st_size for p in (tmp / "j1" / "test").iterdir())
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
+    fast, t_fast = timed(lambda: make_clips("test", reference_clips, seed))
+    with mock.patch.object(speech, "_synthesise", additive_synthesise):
+        slow, t_slow = timed(lambda: make_clips("test", reference_clips, seed))
+    diff = max(float(np.abs(p.audio - q.audio).max()) for a, b in zip(fast, slow)
+               for p, q in zip(a.participants, b.participants))
+    same_motion = all(np.array_equal(p.motion, q.motion) for a, b in zip(fast, slow)
+                      for p, q in zip(a.participants, b.participants))
+    rows += [(f"in memory, wavetable (first {reference_clips})", reference_clips, t_fast),
+             (f"in memory, additive sines (first {reference_clips}, reference)", reference_clips, t_slow)]
+
+    print(f"\nsplit: {clips} dialogues, mean {seconds.mean():.1f} s (min {seconds.min():.1f}, max "
+          f"{seconds.max():.1f}), {seconds.sum() / 3600:.2f} h; on disk {size / 1e9:.2f} GB")
+    print(f"{'what':<58} {'clips':>6} {'seconds':>9} {'clips/s':>9}")
+    for name, n, t in rows:
+        print(f"{name:<58} {n:>6} {t:>9.2f} {n / t:>9.1f}")
+    print(f"\nwavetable vs additive sines: {t_slow / t_fast:.1f}x faster; max abs audio difference {diff:.2e} "
+          f"(full scale 1); motion identical: {same_motion}")
+    best = min(t for name, _, t in rows[1:3])
+    print(f"goal: DualTalk-sized test split on disk in < 60 s -> {best:.1f} s "
+          f"({'met' if best < 60 and clips >= 533 else 'not met' if clips >= 533 else 'run with --clips 533'})")
+
+
+if __name__ == "__main__":
+    main()
