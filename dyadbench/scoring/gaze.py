@@ -84,7 +84,10 @@ def _prepare(item: ScoreItem, skip: int) -> tuple[np.ndarray, np.ndarray, np.nda
     if item.fps != FPS:
         raise InputError(item.stem, f"the gaze suite scores {FPS:g}-fps motion, got {item.fps:g} fps")
     pred = np.asarray(item.pred, dtype=np.float64)
-    gt = gaze.check_motion(item.gt, f"{item.stem} (ground truth)")
+    try:
+        gt = gaze.check_motion(item.gt, f"{item.stem} (ground truth)")
+    except InputError as exc:
+        raise InputError(item.stem, f"ground truth: {exc.problem}") from None
     if pred.ndim != 2 or pred.shape[1] != GAZE7.dim:
         raise InputError(item.stem, f"prediction must be (T, 7) degrees, got shape {pred.shape}")
     if not np.isfinite(pred).all():
