@@ -64,9 +64,10 @@ def test_outputs_and_table(dataset, tmp_path, capsys):
     code, out, err = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res")
     assert code == 0, err
     assert "scored 6 of 6" in out
-    header = out.splitlines()[1]
-    assert header.split()[:4] == ["FD", "exp", "FD", "jaw"] and "x1e3" in header
-    assert header.index("P-FD") < header.index("MSE") < header.index("SID") < header.index("rPCC")
+    assert out.splitlines()[1].split()[:5] == ["FD", "exp", "FD", "jaw", "x1e3"]
+    order = ["FD exp", "P-FD exp", "MSE exp x10", "SID exp", "rPCC exp x1e2", "SID-gtfit exp", "STS exp"]
+    assert [out.index(h) for h in order] == sorted(out.index(h) for h in order)
+    assert max(len(line) for line in out.splitlines()[1:-1]) <= 100
     results, frame = _results(tmp_path / "res")
     for key in ("metrics", "scaled", "n_scored", "excluded", "coverage", "config", "dyadbench_version",
                 "scaling"):

@@ -94,15 +94,27 @@ class ScoreReport:
             line += f"; {len(extra)} predictions without ground truth ignored"
         return line
 
-    def table(self) -> str:
-        """Readable table of scaled values in the column order of the suite's paper."""
+    def table(self, width: int = 100) -> str:
+        """Readable table of scaled values in the column order of the suite's paper.
+
+        Wide tables are wrapped into blocks of at most ``width`` characters (header line + value line).
+        """
         cols = self.columns or [Column(k, k) for k in self.metrics]
         headers = [c.header for c in cols]
         values = [_fmt(self.scaled.get(c.key, math.nan)) for c in cols]
         widths = [max(len(h), len(v)) for h, v in zip(headers, values)]
-        head = "  ".join(h.rjust(w) for h, w in zip(headers, widths))
-        row = "  ".join(v.rjust(w) for v, w in zip(values, widths))
-        return f"{head}\n{row}"
+        blocks, start = [], 0
+        while start < len(cols):
+            end, used = start + 1, widths[start]
+            while end < len(cols) and used + 2 + widths[end] <= width:
+                used += 2 + widths[end]
+                end += 1
+            span = range(start, end)
+            head = "  ".join(headers[i].rjust(widths[i]) for i in span)
+            row = "  ".join(values[i].rjust(widths[i]) for i in span)
+            blocks.append(f"{head}\n{row}")
+            start = end
+        return "\n\n".join(blocks)
 
     def to_dict(self) -> dict:
         d = asdict(self)
