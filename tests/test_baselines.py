@@ -1,0 +1,224 @@
+"""Trivial, partner-copy, retrieval and oracle baselines: exact outputs, fitting, caching, seeds,
+and the structure of the embedded corpus as the baselines see it."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from baselines import fitting, retrieval
+from baselines.oracle import build_oracle
+from baselines.partner import build_lagged_mirror, build_mime
+from baselines.retrieval import build_nn_retrieval
+from baselines.trivial import build_mean_frame, build_median_frame, build_random, build_zero
+from dyadbench.datasets.base import InMemorySource
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.paths import cache_dir
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import ModelOptions
+from dyadbench.protocol.streaming import stream_agent
+from tests.protocol_clips import isolated_cache, make_clip, make_source  # noqa: F401
+
+
+@pytest.fixture
+def train():
+    return make_source(3, split="train", seed=2, seconds=4.0)
+
+
+def _opts(train, **extra):
+    return ModelOptions(train_split=lambda: train, extra=extra)
+
+
+def _all_frames(source):
+    return np.concatenate([p.motion for c in source for p in c.participants]).astype(np.float64)
+
+
+def test_zero_mean_median_frames_are_exact(train):
+    frames = _all_frames(train)
+    clip = make_clip("q", 3.0, seed=9)
+    for build, expected in ((build_zero, np.zeros(56)), (build_mean_frame, frames.mean(axis=0)),
+                            (build_median_frame, np.median(frames, axis=0))):
+        out = stream_agent(build(_opts(train)), clip, "speaker1", ProtocolConfig()).motion
+        np.testing.assert_allclose(out, np.tile(expected, (75, 1)), rtol=1e-6, atol=1e-6)
+
+
+def test_frame_statistics_match_numpy(train):
+    stats = fitting.frame_statistics(train)
+    frames = _all_frames(train)
+    np.testing.assert_allclose(stats["mean"], frames.mean(axis=0), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(stats["cov"], np.cov(frames, rowvar=False), rtol=1e-9, atol=1e-12)
+    assert int(stats["frames"]) == frames.shape[0] and int(stats["median_stride"]) == 1
+
+
+def test_median_is_strided_on_large_splits(train, monkeypatch):
+    monkeypatch.setattr(fitting, "MEDIAN_MAX_FRAMES", 100)
+    stats = fitting.frame_statistics(train)
+    assert int(stats["median_stride"]) == 6  # ceil(3 clips * 2 people * 100 frames / 100)
+
+
+def test_random_frames_are_seeded_per_stream_and_match_train_statistics(train):
+    model = build_random(_opts(train))
+    clip = make_clip("r", 40.0, seed=4)
+    a = stream_agent(model, clip, "speaker1", ProtocolConfig(seed=1)).motion
+    b = stream_agent(build_random(_opts(train)), clip, "speaker1", ProtocolConfig(seed=1)).motion
+    c = stream_agent(model, clip, "speaker1", ProtocolConfig(seed=2)).motion
+    d = stream_agent(model, clip, "speaker2", ProtocolConfig(seed=1)).motion
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, c) and not np.array_equal(a, d)
+    frames = _all_frames(train)
+    draws = np.concatenate([a, c, d]).astype(np.float64)
+    sd = frames.std(axis=0)
+    assert np.all(np.abs(draws.mean(axis=0) - frames.mean(axis=0)) < 0.15 * sd + 1e-6)
+    np.testing.assert_allclose(draws.std(axis=0), sd, rtol=0.15)
+
+
+def test_mime_copies_the_partner_and_lagged_mirror_delays_it(train):
+    clip = make_clip("m", 4.0, seed=6)
+    partner = clip.participant("speaker2").motion
+    mime = stream_agent(build_mime(_opts(train)), clip, "speaker1", ProtocolConfig(context=0)).motion
+    np.testing.assert_array_equal(mime, partner[:100])
+    lag = stream_agent(build_lagged_mirror(_opts(train)), clip, "speaker1", ProtocolConfig(context=0)).motion
+    np.testing.assert_array_equal(lag[12:], partner[:88])  # 0.48 s = 12 frames at 25 fps
+    np.testing.assert_array_equal(lag[:12], np.repeat(partner[:1], 12, axis=0))
+    long_lag = ModelOptions(extra={"lag_seconds": 1.6})  # longer than a turn: the delay line spans turns
+    out = stream_agent(build_lagged_mirror(long_lag), clip, "speaker1", ProtocolConfig()).motion
+    np.testing.assert_array_equal(out[40:], partner[:60])
+
+
+def test_partner_baselines_refuse_sessions_without_partner():
+    clip = make_clip("solo", 2.0, participants=1)
+    for build in (build_mime, build_lagged_mirror):
+        with pytest.raises(InputError, match="no partner"):
+            stream_agent(build(ModelOptions()), clip, "speaker1", ProtocolConfig())
+
+
+def test_retrieval_returns_the_agent_turn_of_an_indexed_partner_turn(train):
+    model = build_nn_retrieval(_opts(train))
+    clip = train.load(train.clip_ids()[1])
+    out = stream_agent(model, clip, "speaker2", ProtocolConfig(context=3)).motion
+    np.testing.assert_array_equal(out, clip.participant("speaker2").motion[:100])
+    assert model.info.config["index_turns"] == 3 * 2 * 4
+
+
+def test_retrieval_outputs_are_whole_train_turns(train):
+    model = build_nn_retrieval(_opts(train))
+    turns = model.index["targets"]
+    out = stream_agent(model, make_clip("new", 3.0, seed=77), "speaker1", ProtocolConfig()).motion
+    for t in range(3):
+        assert any(np.array_equal(out[t * 25:(t + 1) * 25], turn) for turn in turns)
+
+
+def test_retrieval_features_describe_partner_motion_and_speech():
+    r = np.random.default_rng(0)
+    motion = r.standard_normal((2, 25, 56))
+    audio = r.standard_normal((2, 16000)).astype(np.float32)
+    feats = retrieval.partner_features(motion, audio, 16000, 25.0)
+    assert feats.shape == (2, 2 * 56 + 2 * retrieval.N_MELS)
+    np.testing.assert_allclose(feats[:, :56], motion.mean(axis=1))
+    np.testing.assert_allclose(feats[:, 56:112], motion.std(axis=1))
+
+
+def test_retrieval_index_is_built_for_the_protocol_turn_length(train):
+    model = build_nn_retrieval(_opts(train))
+    with pytest.raises(ConfigError, match="25-frame turns"):
+        stream_agent(model, make_clip("x", 3.0), "speaker1", ProtocolConfig(turn_seconds=0.4))
+    short = build_nn_retrieval(_opts(train, turn_seconds=0.4))
+    assert stream_agent(short, make_clip("x", 3.0), "speaker1", ProtocolConfig(turn_seconds=0.4)).motion.shape == (70, 56)
+
+
+def test_fits_are_cached_by_the_split_digest(train, monkeypatch, tmp_path):
+    monkeypatch.setenv("DYADBENCH_CACHE", str(tmp_path))
+    calls = []
+    original = fitting.frame_statistics
+    monkeypatch.setattr("baselines.trivial.frame_statistics", lambda s: calls.append(1) or original(s))
+    first = build_mean_frame(_opts(train))
+    second = build_median_frame(_opts(train))
+    assert len(calls) == 1
+    assert first.info.weights_digest == second.info.weights_digest
+    assert list((cache_dir() / "baselines").glob("frame-stats-v1-*.npz"))
+    other = make_source(2, split="train", seed=3, seconds=4.0)
+    build_mean_frame(_opts(other))
+    assert len(calls) == 2
+
+
+def test_split_digest_follows_content(train):
+    same = make_source(3, split="train", seed=2, seconds=4.0)
+    assert fitting.source_digest(train) == fitting.source_digest(same)
+    assert fitting.source_digest(train) != fitting.source_digest(make_source(3, split="train", seed=8))
+
+
+def test_fitted_baselines_need_a_train_split():
+    with pytest.raises(ConfigError, match="train split"):
+        build_mean_frame(ModelOptions())
+    with pytest.raises(InputError, match="no clips"):
+        build_mean_frame(ModelOptions(train_split=lambda: InMemorySource([], split="train")))
+
+
+def test_oracle_is_marked_and_copies_ground_truth():
+    model = build_oracle(ModelOptions())
+    assert model.info.oracle is True
+    clip = make_clip("o", 3.2)
+    out = stream_agent(model, clip, "speaker2", ProtocolConfig(tail="pad-last")).motion
+    np.testing.assert_array_equal(out[:75], clip.participant("speaker2").motion[:75])
+
+
+# --- the structure of the embedded corpus, seen through the baselines --------------------------------
+
+@pytest.fixture(scope="module")
+def corpus_scores(tmp_path_factory):
+    """Every flame56 baseline at n = 7 on a small generated test split (10 dialogues of 20 s)."""
+    from dyadbench.protocol.runner import evaluate
+    from dyadbench.synth.corpus import make_clips
+
+    train = InMemorySource(make_clips("train", 10, seed=0, duration_s=20.0), "synthetic-small", "train")
+    test = InMemorySource(make_clips("test", 10, seed=0, duration_s=20.0), "synthetic-small", "test")
+    names = ["zero", "mean-frame", "median-frame", "random", "mime", "lagged-mirror", "nn-retrieval", "oracle"]
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setenv("DYADBENCH_CACHE", str(tmp_path_factory.mktemp("corpus-cache")))
+        return {n: evaluate(n, test, ProtocolConfig(context=7), options=ModelOptions(train_split=lambda: train),
+                            progress=False).metrics for n in names}
+
+
+COMPONENTS = ("exp", "jaw", "pose")
+
+
+def test_corpus_oracle_scores_zero(corpus_scores):
+    for c in COMPONENTS:
+        for metric in ("fd", "pfd", "mse"):
+            assert abs(corpus_scores["oracle"][f"{metric}_{c}"]) < 1e-9
+
+
+def test_corpus_constant_frames_have_the_lowest_mse_of_input_blind_baselines(corpus_scores):
+    s = corpus_scores
+    for c in COMPONENTS:
+        mean = s["mean-frame"][f"mse_{c}"]
+        assert mean <= 1.01 * s["median-frame"][f"mse_{c}"]  # least squares: the mean, up to sampling
+        assert 2 * mean < s["zero"][f"mse_{c}"] and 1.5 * mean < s["random"][f"mse_{c}"]
+
+
+def test_corpus_varied_motion_beats_constant_frames_on_fd(corpus_scores):
+    s = corpus_scores
+    best_constant = min(s[n]["fd_exp"] for n in ("zero", "mean-frame", "median-frame"))
+    for n in ("random", "mime", "lagged-mirror", "nn-retrieval"):
+        assert s[n]["fd_exp"] < 0.5 * best_constant, n
+    for n in ("zero", "mean-frame", "median-frame"):
+        assert all(s[n][f"var_pred_{c}"] == 0 and s[n][f"div_pred_{c}"] == 0 for c in COMPONENTS)
+
+
+def test_corpus_mime_has_real_statistics_but_worse_mse_than_mean_frame(corpus_scores):
+    s = corpus_scores
+    for c in COMPONENTS:
+        assert s["mime"][f"var_pred_{c}"] == pytest.approx(s["mime"][f"var_gt_{c}"], rel=0.01)
+        assert s["mime"][f"mse_{c}"] > s["mean-frame"][f"mse_{c}"]
+
+
+def test_corpus_lagged_mirror_beats_mime_on_expression(corpus_scores):
+    s = corpus_scores
+    for metric in ("mse_exp", "pfd_exp", "rpcc_exp"):
+        assert s["lagged-mirror"][metric] < s["mime"][metric], metric
+
+
+def test_corpus_retrieval_beats_random_on_expression(corpus_scores):
+    s = corpus_scores
+    for metric in ("mse_exp", "pfd_exp", "rpcc_exp"):
+        assert s["nn-retrieval"][metric] < s["random"][metric], metric

@@ -1,0 +1,193 @@
+"""``dyadbench eval`` / ``sweep`` / ``models`` / ``datasets`` and the typed result files."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dyadbench.cli import cli
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import ModelOptions
+from dyadbench.protocol.runner import evaluate
+from dyadbench.results import load_result, results_frame
+from dyadbench.synth.writers import write_dualtalk_split
+from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
+
+
+@pytest.fixture(scope="module")
+def dualtalk_dir(tmp_path_factory):
+    """A DualTalk-layout folder with 3 train and 3 test dialogues of the synthetic corpus."""
+    root = tmp_path_factory.mktemp("dualtalk")
+    for split in ("train", "test"):
+        write_dualtalk_split(root, split=split, clips=3, seed=0, progress=False)
+    return root
+
+
+def _run(args):
+    result = CliRunner().invoke(cli, args, catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    return result
+
+
+@pytest.mark.parametrize("model", ["random", "lagged-mirror"])
+def test_eval_then_score_gives_the_same_numbers(dualtalk_dir, tmp_path, model):
+    out = tmp_path / "run"
+    _run(["eval", "--model", model, "--data", str(dualtalk_dir), "--split", "test", "--context", "3",
+          "--seed", "4", "--out", str(out)])
+    result = load_result(out / "result.json")
+    assert sorted(p.name for p in (out / "predictions").iterdir()) == sorted(
+        f"synth_test_{i:05d}_speaker{k}.npy" for i in range(3) for k in (1, 2))
+    pred = np.load(out / "predictions" / "synth_test_00000_speaker1.npy")
+    assert pred.dtype == np.float32 and pred.ndim == 2 and pred.shape[1] == 56
+    _run(["score", str(out / "predictions"), "--gt", str(dualtalk_dir / "test"), "--seed", "4",
+          "--out", str(tmp_path / "scored")])
+    scored = json.loads((tmp_path / "scored" / "results.json").read_text())
+    assert set(scored["metrics"]) == set(result.metrics)
+    for key, value in result.metrics.items():
+        np.testing.assert_allclose(scored["metrics"][key], value, rtol=1e-12, atol=1e-15, err_msg=key)
+    assert result.model.name == model and result.protocol.context == 3 and result.protocol.seed == 4
+    assert result.data.items == 6 and len(result.per_clip) == 6 and (out / "per_clip.csv").is_file()
+    assert result.environment["dyadbench"] and result.environment["numpy"] == np.__version__
+
+
+def test_eval_defaults_to_the_embedded_corpus_and_says_so(dualtalk_dir, tmp_path, monkeypatch):
+    import dyadbench.datasets.dualtalk as dualtalk
+    import dyadbench.datasets.synthetic as synthetic
+
+    opened = []
+
+    def small_embedded(root, split):
+        opened.append((root, split))
+        return dualtalk.open_split(dualtalk_dir, split)
+
+    monkeypatch.setattr(synthetic, "open_split", small_embedded)
+    result = CliRunner().invoke(cli, ["eval", "--model", "mean-frame", "--context", "0", "--clips", "1",
+                                      "--out", str(tmp_path / "e")])
+    assert result.exit_code == 0, result.output
+    assert "using the embedded synthetic corpus" in result.output
+    assert opened[0] == (None, "test") and (None, "train") in opened
+    assert load_result(tmp_path / "e" / "result.json").data.clips == 1
+
+
+def test_sweep_runs_n_0_3_7_and_adds_rows_without_rerunning(dualtalk_dir, tmp_path):
+    out = tmp_path / "results"
+    args = ["sweep", "--models", "mean-frame,lagged-mirror", "--splits", "test", "--contexts", "0,3,7",
+            "--data", str(dualtalk_dir), "--out", str(out), "--no-per-clip"]
+    _run(args)
+    files = sorted(out.rglob("*.json"))
+    assert [f.relative_to(out).as_posix() for f in files] == [
+        f"dualtalk/test/n{n}/{m}.json" for n in (0, 3, 7) for m in ("lagged-mirror", "mean-frame")]
+    frame = results_frame([out])
+    for model in ("mean-frame", "lagged-mirror"):
+        part = frame[frame["model"] == model].pivot_table(index="metric", columns="context", values="raw")
+        assert list(part.columns) == [0, 3, 7]
+        np.testing.assert_array_equal(part[0], part[3])  # history-free: identical at every n
+        np.testing.assert_array_equal(part[0], part[7])
+    later = load_result(out / "dualtalk/test/n7/mean-frame.json")
+    assert later.per_clip == [] and any("reused" in n for n in later.notes)
+    again = _run(args + ["--models", "mean-frame,mime"])
+    assert again.output.count("skip") == 3
+    assert len(list(out.rglob("*.json"))) == 9
+
+
+def test_parallel_streaming_refuses_unpicklable_options(tmp_path):
+    train = make_source(2, split="train", seed=1, seconds=6.0)
+    test = make_source(3, seed=2, seconds=6.0)
+
+    def run(jobs):
+        return evaluate("random", test, ProtocolConfig(context=2, seed=3), jobs=jobs,
+                        options=ModelOptions(train_split=lambda: train), progress=False)
+
+    with pytest.raises(ConfigError, match="picklable"):
+        run(2)  # a lambda train split cannot cross processes: refused with a clear message
+    assert run(1).metrics["fd_exp"] > 0
+
+
+def test_parallel_streaming_matches_serial(dualtalk_dir, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    _run(["eval", "--model", "random", "--data", str(dualtalk_dir), "--context", "1", "--out", str(a)])
+    _run(["eval", "--model", "random", "--data", str(dualtalk_dir), "--context", "1", "--out", str(b),
+          "--jobs", "2"])
+    assert load_result(a / "result.json").metrics == load_result(b / "result.json").metrics
+    for f in (a / "predictions").iterdir():
+        np.testing.assert_array_equal(np.load(f), np.load(b / "predictions" / f.name))
+
+
+@pytest.mark.parametrize("args,message", [
+    (["eval", "--model", "mean-frme"], "did you mean mean-frame"),
+    (["eval", "--model", "zero", "--dataset", "dualtalk"], "needs --data"),
+    (["eval", "--model", "zero", "--context", "-1"], "-1"),
+    (["sweep", "--models", "zero", "--contexts", "a,b"], "comma-separated integers"),
+])
+def test_bad_options_are_explained(args, message, capsys):
+    proc = subprocess.run([sys.executable, "-m", "dyadbench", *args], capture_output=True, text=True)
+    assert proc.returncode != 0
+    assert message in proc.stderr + proc.stdout
+    assert "Traceback" not in proc.stderr
+
+
+def test_listing_does_not_import_heavy_modules():
+    code = ("import sys; from dyadbench.cli import main\n"
+            "for cmd in (['models'], ['datasets']):\n"
+            "    try:\n        main(cmd)\n    except SystemExit:\n        pass\n"
+            "heavy = [m for m in ('torch', 'sklearn', 'baselines.trivial', 'models.timar') if m in sys.modules]\n"
+            "print('HEAVY', heavy)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert "HEAVY []" in proc.stdout, proc.stdout + proc.stderr
+    for name in ("mean-frame", "nn-retrieval", "oracle", "timar", "synthetic", "dualtalk"):
+        assert name in proc.stdout
+
+
+# --- result files -------------------------------------------------------------------------------------
+
+@pytest.fixture
+def result_file(tmp_path):
+    train = make_source(2, split="train", seed=1, seconds=5.0)
+    r = evaluate("mean-frame", make_source(2, seed=2, seconds=5.0), ProtocolConfig(context=3),
+                 options=ModelOptions(train_split=lambda: train), progress=False)
+    return r, r.write(tmp_path / "r.json")
+
+
+def test_result_round_trip(result_file):
+    result, path = result_file
+    back = load_result(path)
+    assert back.metrics.keys() == result.metrics.keys()
+    assert all(back.metrics[k] == v or (np.isnan(v) and np.isnan(back.metrics[k])) for k, v in result.metrics.items())
+    assert back.per_clip_frame().shape == result.per_clip_frame().shape
+    assert back.model == result.model and back.protocol == result.protocol and back.data == result.data
+    frame = results_frame([path])
+    assert set(frame["metric"]) == set(result.metrics) and (frame["context"] == 3).all()
+
+
+@pytest.mark.parametrize("edit,message", [
+    (lambda d: d.pop("protocol"), "'protocol' missing"),
+    (lambda d: d["protocol"].pop("context"), "lacks context"),
+    (lambda d: d["protocol"].update(context="7"), "protocol.context has the wrong type"),
+    (lambda d: d["model"].update(oracle=1), "model.oracle has the wrong type"),
+    (lambda d: d["metrics"].update(fd_exp="big"), "metrics.fd_exp is not a number"),
+    (lambda d: d.update(schema="other/1"), "not a dyadbench eval result"),
+    (lambda d: d["per_clip"]["rows"][0].pop(), "per_clip row 0"),
+])
+def test_malformed_result_files_are_rejected_by_name(result_file, edit, message):
+    _, path = result_file
+    data = json.loads(path.read_text())
+    edit(data)
+    path.write_text(json.dumps(data))
+    with pytest.raises(InputError, match=message) as exc:
+        load_result(path)
+    assert str(path) in str(exc.value)
+
+
+def test_unreadable_result_files_are_rejected(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text("{not json")
+    with pytest.raises(InputError, match="not readable JSON"):
+        results_frame([tmp_path])
+    with pytest.raises(InputError, match="no such result"):
+        results_frame([tmp_path / "missing"])
