@@ -254,3 +254,14 @@ def test_real_demo_clip_scores_against_itself(tmp_path):
     assert report.metrics["mse_exp"] == 0.0 and report.metrics["rpcc_pose"] == 0.0
     assert abs(report.metrics["fd_exp"]) < 1e-9
     assert report.coverage["truncated"][0]["used"] == 587
+
+
+def test_split_names_a_sub_folder_of_the_root(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    root = tmp_path / "DualTalk"
+    root.mkdir()
+    gt.rename(root / "test")
+    code, out, _ = run(capsys, pred, "--gt", root, "--split", "test")
+    assert code == 0 and "scored 6 of 6" in out
+    code, _, err = run(capsys, pred, "--gt", root, "--split", "ood")
+    assert code == 2 and "ood" in err and "split folder" in err

@@ -19,7 +19,8 @@ from dyadbench.registry import SUITES
               help="Metric suite. dualtalk = DualTalk/TIMAR tables; react = REACT challenge; "
                    "l2l = Learning2Listen line; gaze = StyGazeTalk gaze-head suite.")
 @click.option("--split", default=None,
-              help="Split name where the ground truth root holds several (react: val/test; l2l: test).")
+              help="Split name where the ground truth root holds several (dualtalk: test/ood sub-folder "
+                   "of the DualTalk root; react: val/test; l2l: test).")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Write DIR/results.json and DIR/per_clip.csv (atomically).")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
