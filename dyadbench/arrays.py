@@ -24,15 +24,19 @@ def _describe_read_error(exc: Exception) -> str:
     return f"unreadable ({type(exc).__name__}: {text})"
 
 
-def load_npy(path: str | Path) -> np.ndarray:
-    """Read one ``.npy`` array (no pickles). Missing, unreadable or non-``.npy`` files -> InputError."""
-    path = Path(path)
+def _open(path: Path) -> np.ndarray | np.lib.npyio.NpzFile:
     if not path.is_file():
         raise InputError(path, "file not found")
     try:
-        array = np.load(path, allow_pickle=False)
+        return np.load(path, allow_pickle=False)
     except _READ_ERRORS as exc:
         raise InputError(path, _describe_read_error(exc)) from None
+
+
+def load_npy(path: str | Path) -> np.ndarray:
+    """Read one ``.npy`` array (no pickles). Missing, unreadable or non-``.npy`` files -> InputError."""
+    path = Path(path)
+    array = _open(path)
     if not isinstance(array, np.ndarray):
         raise InputError(path, "is an .npz archive, expected a single .npy array")
     return array
@@ -44,12 +48,7 @@ def load_npz(path: str | Path, keys: list[str] | None = None) -> dict[str, np.nd
     ``keys`` restricts reading to those entries (each must exist); ``None`` reads all of them.
     """
     path = Path(path)
-    if not path.is_file():
-        raise InputError(path, "file not found")
-    try:
-        archive = np.load(path, allow_pickle=False)
-    except _READ_ERRORS as exc:
-        raise InputError(path, _describe_read_error(exc)) from None
+    archive = _open(path)
     if not isinstance(archive, np.lib.npyio.NpzFile):
         raise InputError(path, "is a single .npy array, expected an .npz archive")
     with archive:
