@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm import tqdm
 
 from dyadbench.errors import InputError
 from dyadbench.metrics.ccc import max_ccc_over_neighbours
@@ -127,10 +128,10 @@ def _sum_over_reactions(per_reaction: np.ndarray) -> np.ndarray:
     return total
 
 
-def _chunk_indptr(indptr: np.ndarray, rows: slice, reactions: int) -> tuple[np.ndarray, np.ndarray]:
-    """Candidate lists of the queries (k, i) of rows k in ``rows``: each row's list repeated R times."""
+def _chunk_indptr(indptr: np.ndarray, rows: slice, reactions: int) -> np.ndarray:
+    """CSR pointers of the queries (k, i) of rows k in ``rows``: each row's list repeated R times."""
     counts = np.repeat(np.diff(indptr[rows.start:rows.stop + 1]), reactions)
-    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), counts
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64)
 
 
 def fr_corr_per_reaction(p, lst, indptr, indices) -> np.ndarray:
@@ -153,19 +154,20 @@ def fr_corr(p, lst, indptr, indices) -> float:
 
 
 def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = True, threads: int | None = None,
-                         progress=None) -> np.ndarray:
+                         progress: bool = False) -> np.ndarray:
     """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
     n, r = p.shape[:2]
     out = np.empty((n, r))
     refs = lst.astype(np.float64)
+    bar = tqdm(total=n, desc="FRDist (DTW)", unit="sample", disable=not progress, leave=False)
     for rows in _row_chunks(n):
-        ptr, counts = _chunk_indptr(indptr, rows, r)
+        ptr = _chunk_indptr(indptr, rows, r)
         cand = np.concatenate([np.tile(indices[indptr[k]:indptr[k + 1]], r) for k in range(rows.start, rows.stop)])
         queries = p[rows].astype(np.float64).reshape(-1, p.shape[2], DIM)
         values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, prune=prune, threads=threads)
         out[rows] = values.reshape(-1, r)
-        if progress is not None:
-            progress(rows.stop - rows.start)
+        bar.update(rows.stop - rows.start)
+    bar.close()
     return out
 
 
@@ -193,18 +195,23 @@ def ordered_pair_sq_sum(stack: np.ndarray) -> np.ndarray:
     return 2.0 * stack.shape[1] * np.einsum("bnf,bnf->b", dev, dev)
 
 
+def fr_div_per_sample(p) -> np.ndarray:
+    """(N,): sum over ordered pairs i != j of |P[k,i] - P[k,j]|^2 / (R (R-1) T 25); zeros when R == 1."""
+    n, r, t, d = p.shape
+    if r == 1:
+        return np.zeros(n)
+    per = np.concatenate([ordered_pair_sq_sum(p[rows].reshape(rows.stop - rows.start, r, t * d))
+                          for rows in _row_chunks(n)])
+    return per / (r * (r - 1) * t * d)
+
+
 def fr_div(p) -> float:
     """FRDiv / S-MSE (higher is better); 0 when R == 1.
 
     .. math:: \\mathrm{FRDiv} = \\frac{1}{N}\\sum_k \\frac{\\sum_{i \\ne j}\\lVert P_{k,i} - P_{k,j}\\rVert^2}
               {R(R-1)\\,T\\cdot 25}
     """
-    n, r, t, d = p.shape
-    if r == 1:
-        return 0.0
-    per = np.concatenate([ordered_pair_sq_sum(p[rows].reshape(rows.stop - rows.start, r, t * d))
-                          for rows in _row_chunks(n)])
-    return float(np.mean(per / (r * (r - 1) * t * d)))
+    return float(np.mean(fr_div_per_sample(p)))
 
 
 def fr_var(p) -> float:
@@ -247,6 +254,37 @@ def fr_syn(p, sp, *, all_reactions: bool = False) -> float:
     return float32_mean(fr_syn_offsets(p, sp, all_reactions=all_reactions).ravel())
 
 
+def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
+             prune: bool = True, threads: int | None = None,
+             progress: bool = False) -> tuple[dict[str, float], dict[str, np.ndarray]]:
+    """:func:`score` plus each speaker sample's contribution: ``(metrics, per_sample)``.
+
+    ``per_sample`` holds (N,) arrays whose mean is the metric: ``FRCorr`` and ``FRDist`` (sum over the
+    reactions of the best value over neighbours), ``FRDiv``, ``FRVar`` (mean variance of the sample's
+    reactions) and ``FRSyn`` (TLCC offset of reaction 0). FRDvs has no per-sample form.
+    """
+    p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
+    corr = _sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))
+    dist = _sum_over_reactions(fr_dist_per_reaction(p, lst, indptr, indices, prune=prune, threads=threads,
+                                                    progress=progress))
+    div = fr_div_per_sample(p)
+    offsets = fr_syn_offsets(p, sp, all_reactions=True)
+    metrics = {
+        "FRCorr": float(np.mean(corr)),
+        "FRDist": float(np.mean(dist)),
+        "FRDiv": float(np.mean(div)),
+        "FRVar": fr_var(p),
+        "FRDvs": fr_dvs(p),
+        "FRSyn": float32_mean(offsets[:, 0]),
+        "FRSyn_all": float32_mean(offsets.ravel()),
+    }
+    var = np.concatenate([np.var(p[rows].astype(np.float64), axis=2, ddof=1).mean(axis=(1, 2))
+                          for rows in _row_chunks(len(p))])
+    per_sample = {"FRCorr": corr, "FRDist": dist, "FRDiv": div, "FRVar": var,
+                  "FRSyn": offsets[:, 0].astype(np.float64)}
+    return metrics, per_sample
+
+
 def score(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
           prune: bool = True, threads: int | None = None) -> dict[str, float]:
     """Every metric of the suite: a dict keyed ``FRCorr FRDist FRDiv FRVar FRDvs FRSyn FRSyn_all``.
@@ -257,14 +295,5 @@ def score(predictions, listener, speaker, neighbours, *, reactions: int | None =
     FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist and
     FRSyn (see :data:`HIGHER_IS_BETTER`).
     """
-    p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
-    return {
-        "FRCorr": fr_corr(p, lst, indptr, indices),
-        "FRDist": fr_dist(p, lst, indptr, indices, prune=prune, threads=threads),
-        "FRDiv": fr_div(p),
-        "FRVar": fr_var(p),
-        "FRDvs": fr_dvs(p),
-        "FRSyn": fr_syn(p, sp),
-        "FRSyn_all": fr_syn(p, sp, all_reactions=True),
-    }
-
+    return evaluate(predictions, listener, speaker, neighbours, reactions=reactions, prune=prune,
+                    threads=threads)[0]
