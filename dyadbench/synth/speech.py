@@ -73,16 +73,21 @@ def _fine_signals(track: Track, style: Style, n_fine: int) -> tuple[np.ndarray, 
 
 
 def wavetables(style: Style, sample_rate: int) -> np.ndarray:
-    """(2, TABLE_SIZE) one-period waveforms of the voice for vowels "a" and "i" (unit RMS)."""
+    """(2, TABLE_SIZE) one-period waveforms of the voice for vowels "a" and "i" (unit RMS).
+
+    Table v is sum_k w_k sin(2 pi k n / N) with w_k = k^-tilt x (1 + 4 G(k f0 - F1, 200) + 2.5 G(k f0 - F2, 300)),
+    G(x, s) = exp(-(x / s)^2), for the vowel's formants F1, F2, built by an inverse real FFT.
+    """
     n_harm = int(min(40, (0.45 * sample_rate) / style.f0_base))
     k = np.arange(1, n_harm + 1)
     freq = k * style.f0_base
-    phase = 2 * np.pi * np.arange(TABLE_SIZE) / TABLE_SIZE
     tables = []
     for f1, f2 in FORMANTS.values():
         w = k ** (-style.timbre_tilt) * (1.0 + 4.0 * np.exp(-((freq - f1) / 200.0) ** 2)
                                          + 2.5 * np.exp(-((freq - f2) / 300.0) ** 2))
-        table = np.sin(np.outer(phase, k)) @ w
+        spectrum = np.zeros(TABLE_SIZE // 2 + 1, dtype=np.complex128)
+        spectrum[k] = -0.5j * TABLE_SIZE * w
+        table = np.fft.irfft(spectrum, n=TABLE_SIZE)
         tables.append(table / np.sqrt(np.mean(table ** 2)))
     return np.asarray(tables, dtype=np.float32)
 
@@ -96,9 +101,13 @@ def _noise_table() -> np.ndarray:
 def _noise(r: np.random.Generator, n: int) -> np.ndarray:
     """``n`` samples of unit white noise from a random offset of the table (wrapping around)."""
     table = _noise_table()
-    start = int(r.integers(NOISE_TABLE_SIZE))
-    reps = -(-(start + n) // NOISE_TABLE_SIZE)
-    return (np.tile(table, reps) if reps > 1 else table)[start:start + n].copy()
+    pos = int(r.integers(NOISE_TABLE_SIZE))
+    parts = []
+    while n > 0:
+        take = min(n, NOISE_TABLE_SIZE - pos)
+        parts.append(table[pos:pos + take])
+        n, pos = n - take, 0
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=np.float32)
 
 
 def _synthesise(r: np.random.Generator, style: Style, env: np.ndarray, f0: np.ndarray, vowel: np.ndarray,

@@ -49,8 +49,8 @@ def render_extras(identity: str, n_frames: int, seed: int) -> dict[str, np.ndarr
             "cam": np.array([[person.uniform(7.5, 9.5), person.normal(0, 0.03), person.normal(0.03, 0.02)]]),
             "light": person.normal(0.0, 0.3, (1, 9, 3)) + np.array([3.4, 0, 0, 0, 0, 0, 0, 0, 0])[None, :, None]}
     jitter = {"shape": 0.1, "tex": 0.08, "cam": 0.01, "light": 0.05}
-    return {k: (v + frame.normal(0.0, jitter[k], (n_frames, *v.shape[1:]))).astype(np.float32)
-            for k, v in base.items()}
+    return {k: v.astype(np.float32) + np.float32(jitter[k]) * frame.standard_normal(
+        (n_frames, *v.shape[1:]), dtype=np.float32) for k, v in base.items()}
 
 
 def write_clip(folder: Path, clip: DyadicClip, seed: int) -> None:
