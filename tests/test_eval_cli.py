@@ -91,6 +91,7 @@ def test_sweep_runs_n_0_3_7_and_adds_rows_without_rerunning(dualtalk_dir, tmp_pa
         np.testing.assert_array_equal(part[0], part[7])
     later = load_result(out / "dualtalk/test/n7/mean-frame.json")
     assert later.per_clip == [] and any("reused" in n for n in later.notes)
+    assert later.coverage["scored"] == 6 and all(isinstance(v, int) for v in later.coverage.values())
     again = _run(args + ["--models", "mean-frame,mime"])
     assert again.output.count("skip") == 3
     assert len(list(out.rglob("*.json"))) == 9

@@ -91,7 +91,7 @@ def summary(result: EvalResult) -> str:
     """Coverage line and a metric / raw / scaled table in the suite's column order."""
     lines = [f"[{result.suite}] {result.model.name}{' (ORACLE)' if result.model.oracle else ''} on "
              f"{result.data.dataset}/{result.data.split}, {result.protocol.name} n={result.protocol.context}: "
-             f"{len(result.per_clip)} of {result.data.items} predictions scored"
+             f"{result.coverage.get('scored', len(result.per_clip))} of {result.data.items} predictions scored"
              + (f", {len(result.excluded)} excluded" if result.excluded else ""),
              f"wall {result.timing.wall_s:.1f} s, mean per-turn latency "
              f"{result.timing.mean_turn_latency_s * 1e3:.3f} ms over {result.timing.turns} turns"]

@@ -16,10 +16,18 @@ from dyadbench.cli.eval import data_options, open_splits, protocol_options, reso
 from dyadbench.errors import ConfigError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.registry import MODELS
+from dyadbench.results import EvalResult
 
 
 def result_path(out: Path, dataset: str, split: str, context: int, model: str) -> Path:
     return out / dataset / split / f"n{context}" / f"{model}.json"
+
+
+def without_per_clip(result: EvalResult) -> EvalResult:
+    """The result with per-clip metrics dropped and per-clip lists in ``coverage`` replaced by counts."""
+    coverage = {k: len(v) if isinstance(v, (list, dict)) else v for k, v in result.coverage.items()}
+    return replace(result, per_clip=[], coverage=coverage,
+                   notes=result.notes + ["per-clip metrics not kept (--no-per-clip); coverage lists are counts"])
 
 
 def _csv(value: str, what: str) -> list[str]:
@@ -78,8 +86,5 @@ def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: st
                          if keep_predictions else None)
                 result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
                                  jobs=jobs, predictions_dir=preds)
-                if not per_clip:
-                    result = replace(result, per_clip=[],
-                                     notes=result.notes + ["per-clip metrics not kept (--no-per-clip)"])
-                result.write(path)
                 click.echo(summary(result).splitlines()[0] + f" -> {path}")
+                (result if per_clip else without_per_clip(result)).write(path)
