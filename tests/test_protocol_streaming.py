@@ -10,7 +10,8 @@ from hypothesis import strategies as st
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.causality import CausalityViolation, check_causal
 from dyadbench.protocol.config import ProtocolConfig
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.interface import ModelInfo, OfflineModel, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.runner import run_direction
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.seeding import derive_seed
 from tests.protocol_clips import isolated_cache, make_clip  # noqa: F401
@@ -241,3 +242,27 @@ def test_lengths_property(seconds, context, tail):
     out = stream_agent(Spy(), clip, "speaker1", ProtocolConfig(context=context, tail=tail))
     whole = (clip.num_frames // 25) * 25
     assert out.motion.shape[0] == (whole if tail == "truncate" else clip.num_frames)
+
+
+class FullSequence(OfflineModel):
+    """An offline model: the partner's motion reversed in time (needs the future, so it is not causal)."""
+
+    def __init__(self, frames_off: int = 0):
+        self.info = ModelInfo("reverse")
+        self.frames_off = frames_off
+
+    def predict_clip(self, ctx, user_motion, user_audio, agent_audio):
+        assert not user_motion.flags.writeable and not agent_audio.flags.writeable
+        assert agent_audio.shape == (round(user_motion.shape[0] * 640),)
+        return user_motion[::-1][: user_motion.shape[0] - self.frames_off]
+
+
+def test_offline_models_get_the_whole_clip_and_are_recorded_as_offline():
+    clip = make_clip("off", 4.4)
+    out = run_direction(FullSequence(), clip, "speaker1", ProtocolConfig())
+    assert out.protocol == "offline" and out.motion.shape == (110, 56) and len(out.turn_latency_s) == 1
+    np.testing.assert_array_equal(out.motion, clip.participant("speaker2").motion[::-1])
+    with pytest.raises(InputError, match=r"expected \(110, 56\)"):
+        run_direction(FullSequence(frames_off=1), clip, "speaker1", ProtocolConfig())
+    with pytest.raises(ConfigError, match="not a StreamingModel"):
+        check_causal(FullSequence, clip, "speaker1", ProtocolConfig(), 0)
