@@ -192,3 +192,16 @@ def test_unreadable_result_files_are_rejected(tmp_path):
         results_frame([tmp_path])
     with pytest.raises(InputError, match="no such result"):
         results_frame([tmp_path / "missing"])
+
+
+def test_single_participant_gaze_sessions_are_scored_with_the_gaze_suite():
+    from dyadbench.datasets.base import InMemorySource
+    from dyadbench.synth.gaze import make_gaze_sessions
+
+    train = InMemorySource(make_gaze_sessions("train", 2, duration_s=12.0), "gaze-small", "train")
+    test = InMemorySource(make_gaze_sessions("test", 2, duration_s=12.0), "gaze-small", "test")
+    scores = {m: evaluate(m, test, ProtocolConfig(context=3), options=ModelOptions(train_split=lambda: train),
+                          progress=False) for m in ("mean-frame", "oracle")}
+    assert {r.suite for r in scores.values()} == {"gaze"}
+    assert scores["oracle"].model.oracle and scores["oracle"].data.items == 2
+    assert scores["oracle"].metrics["mae_all"] == 0.0 < scores["mean-frame"].metrics["mae_all"]
