@@ -8,20 +8,21 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import Iterable
 
 import click
-import numpy as np
 import torch
+from tqdm import tqdm
 
 from dyadbench import atomic
-from dyadbench.datasets.base import DyadicClip
+from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.registry import DATASETS
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.training.checkpoint import save_checkpoint
 from models.sfms.bundle import PREDICTOR_MODEL, TOKENIZER_MODEL, load_tokenizer
 from models.sfms.config import PREDICTOR_PRESETS, TOKENIZER_PRESETS, predictor_preset, to_dict, tokenizer_preset
-from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed
+from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed, row_stats
 from models.sfms.distributed import close_world, init_world
 from models.sfms.train_predictor import fit_predictor
 from models.sfms.train_tokenizer import eval_windows, fit_tokenizer
@@ -44,18 +45,26 @@ def parse_overrides(pairs: tuple[str, ...]) -> dict:
 
 
 def load_split_clips(dataset: str, root: Path | None, clips: int | None, val_frac: float,
-                     seed: int) -> tuple[list[DyadicClip], list[DyadicClip], dict]:
-    """The train split (first ``clips`` clips), divided into train / validation clips by a seeded draw."""
+                     seed: int) -> tuple[Iterable[DyadicClip], Iterable[DyadicClip], dict]:
+    """The train split (first ``clips`` clips), divided into train / validation clips by a seeded draw.
+
+    The clips are returned as lazy iterables (read one at a time), so a large split never sits in memory.
+    """
     source = DATASETS.load(dataset)(root, "train")
     ids = source.clip_ids()[:clips] if clips else source.clip_ids()
     if len(ids) < 2:
         raise ConfigError(f"need at least 2 training clips, {dataset}/train has {len(ids)}")
     order = seeded_rng(seed, "sfms-val").permutation(len(ids))
     n_val = max(1, int(round(val_frac * len(ids))))
-    val_ids = {ids[i] for i in order[:n_val]}
-    loaded = [source.load(i) for i in ids]
-    describe = {**source.describe(), "clips_used": len(ids), "val_clips": sorted(val_ids)}
-    return [c for c in loaded if c.clip_id not in val_ids], [c for c in loaded if c.clip_id in val_ids], describe
+    val_ids = sorted(ids[i] for i in order[:n_val])
+    train_ids = [i for i in ids if i not in set(val_ids)]
+    describe = {**source.describe(), "clips_used": len(ids), "val_clips": val_ids}
+    return _lazy(source, train_ids), _lazy(source, val_ids), describe
+
+
+def _lazy(source: ClipSource, ids: list[str]) -> Iterable[DyadicClip]:
+    return (source.load(i) for i in tqdm(ids, desc=f"read {source.dataset}/{source.split}", unit="clip",
+                                         leave=False))
 
 
 def _common(f):
@@ -120,8 +129,9 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
     world = init_world(device)
     try:
         train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
-        mean, std = motion_stats(clip_motions(train))
-        norm = [(a - mean) / std for a in clip_motions(train)]
+        train_motion = clip_motions(train)
+        mean, std = motion_stats(train_motion)
+        norm = [(a - mean) / std for a in train_motion]
         val_set = eval_windows([(a - mean) / std for a in clip_motions(val)], cfg.window, limit=val_windows)
         model, history = fit_tokenizer(cfg, norm, val_set, motion_mean=mean, motion_std=std,
                                        seed=seed + world.rank, world=world)
@@ -158,13 +168,14 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
     try:
         train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
         raw_train, raw_val = directed_clips(train, cfg), directed_clips(val, cfg)
-        rows = np.concatenate([r[3] for r in raw_train]).astype(np.float64)
-        audio_mean, audio_std = rows.mean(0).astype(np.float32), np.maximum(rows.std(0), 1e-4).astype(np.float32)
+        audio_mean, audio_std = row_stats(raw_train)
         mm, ms = tokenizer.motion_mean.numpy(), tokenizer.motion_std.numpy()
-        model, history = fit_predictor(
-            cfg, tokenizer, normalise_directed(raw_train, mm, ms, audio_mean, audio_std),
-            normalise_directed(raw_val, mm, ms, audio_mean, audio_std), audio_mean=audio_mean,
-            audio_std=audio_std, seed=seed + world.rank, world=world, val_windows=val_windows)
+        train_set = normalise_directed(raw_train, mm, ms, audio_mean, audio_std)
+        val_set = normalise_directed(raw_val, mm, ms, audio_mean, audio_std)
+        del raw_train, raw_val
+        model, history = fit_predictor(cfg, tokenizer, train_set, val_set, audio_mean=audio_mean,
+                                       audio_std=audio_std, seed=seed + world.rank, world=world,
+                                       val_windows=val_windows)
         if world.main:
             meta = {"model": PREDICTOR_MODEL, "preset": preset, "seed": seed, "data": describe,
                     "tokenizer": str(tokenizer_path), "best_val_ce": history["best_val_ce"],

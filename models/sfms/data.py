@@ -11,6 +11,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Iterable
 
 import numpy as np
 
@@ -28,8 +29,8 @@ def motion_stats(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
     return stacked.mean(0).astype(np.float32), np.maximum(stacked.std(0), STD_FLOOR).astype(np.float32)
 
 
-def clip_motions(clips: list[DyadicClip]) -> list[np.ndarray]:
-    """Every participant's motion of every clip, float32."""
+def clip_motions(clips: Iterable[DyadicClip]) -> list[np.ndarray]:
+    """Every participant's motion of every clip, float32 (clips may be a generator: audio is not kept)."""
     return [np.asarray(p.motion, dtype=np.float32) for c in clips for p in c.participants]
 
 
@@ -49,8 +50,12 @@ class DirectedClip:
     audio: np.ndarray
 
 
-def directed_clips(clips: list[DyadicClip], cfg: PredictorConfig) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
-    """Raw (name, listener motion, speaker motion, speaker rows) for both directions of every clip."""
+def directed_clips(clips: Iterable[DyadicClip], cfg: PredictorConfig
+                   ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
+    """Raw (name, listener motion, speaker motion, speaker rows) for both directions of every clip.
+
+    ``clips`` may be a generator, so a large split is read one clip at a time (waveforms are dropped).
+    """
     out = []
     for clip in clips:
         if len(clip.participants) != 2:
@@ -64,6 +69,16 @@ def directed_clips(clips: list[DyadicClip], cfg: PredictorConfig) -> list[tuple[
             out.append((f"{clip.clip_id}_{listener.name}", np.asarray(listener.motion[:t], np.float32),
                         np.asarray(speaker.motion[:t], np.float32), rows))
     return out
+
+
+def row_stats(raw: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """Per-bin mean and std (floored at 1e-4) of the speaker rows of directed clips, accumulated in float64."""
+    total = sum(float(r[3].shape[0]) for r in raw)
+    s1 = sum(r[3].sum(0, dtype=np.float64) for r in raw)
+    s2 = sum(np.square(r[3], dtype=np.float64).sum(0) for r in raw)
+    mean = s1 / total
+    std = np.sqrt(np.maximum(s2 / total - mean ** 2, 0.0))
+    return mean.astype(np.float32), np.maximum(std, STD_FLOOR).astype(np.float32)
 
 
 def normalise_directed(raw: list[tuple[str, np.ndarray, np.ndarray, np.ndarray]], motion_mean: np.ndarray,

@@ -1,0 +1,83 @@
+"""Score ``dyadbench eval`` runs with the Learning2Listen-line suite on the split they were generated from.
+
+SFMS is a listening-head model, and its paper reports the L2L-line metrics (FD and P-FD per component).
+This command re-scores the prediction folders that ``dyadbench eval --out RUN`` wrote (for SFMS and for
+the baselines) with :func:`dyadbench.scoring.l2l.score_arrays` — ground truth = the agent's motion,
+speaker = the partner's motion — and prints / writes one comparison table::
+
+    python -m models.sfms.l2l_compare runs/sfms runs/mean-frame ... --out benchmarks/results/sfms_l2l.md
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import click
+import numpy as np
+
+from dyadbench import atomic
+from dyadbench.arrays import load_npy
+from dyadbench.errors import InputError
+from dyadbench.protocol.runner import open_dataset_split
+from dyadbench.results import EvalResult, load_result
+from dyadbench.scoring import l2l
+from dyadbench.scoring.report import ScoreItem
+
+COLUMNS = ("fd_exp", "fd_pose", "pfd_exp", "pfd_pose")
+
+
+def run_items(result: EvalResult, run: Path) -> list[ScoreItem]:
+    """ScoreItems of one eval run: prediction, the agent's ground truth and the partner's motion."""
+    pred_dir = Path(result.predictions) if result.predictions else run / "predictions"
+    files = sorted(pred_dir.glob("*.npy"))
+    if not files:
+        raise InputError(pred_dir, "no predictions (run `dyadbench eval ... --out RUN` to keep them)")
+    source = open_dataset_split(result.data.dataset, Path(result.data.root) if result.data.root else None,
+                                result.data.split)
+    clips, items = {}, []
+    for path in files:
+        clip_id, _, agent = path.stem.rpartition("_")
+        clip = clips.get(clip_id) or clips.setdefault(clip_id, source.load(clip_id))
+        partner = clip.partner_of(agent)
+        if partner is None:
+            raise InputError(path, "the L2L suite needs two-participant clips")
+        pred = load_npy(path)
+        n = min(len(pred), clip.num_frames)
+        items.append(ScoreItem(path.stem, pred[:n], clip.participant(agent).motion[:n], partner.motion[:n],
+                               fps=clip.fps))
+    return items
+
+
+def table(rows: list[dict]) -> str:
+    head = "| model | context n | predictions | " + " | ".join(c.replace("_", " ").upper().replace("POSE", "rot")
+                                                         for c in COLUMNS) + " |"
+    lines = [head, "|" + "---|" * (3 + len(COLUMNS))]
+    for r in sorted(rows, key=lambda r: r["fd_exp"]):
+        values = " | ".join(f"{r[c]:.4f}" if math.isfinite(r[c]) else "–" for c in COLUMNS)
+        lines.append(f"| {r['model']} | {r['context']} | {r['items']} | {values} |")
+    return "\n".join(lines)
+
+
+@click.command()
+@click.argument("runs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False, path_type=Path))
+@click.option("--seed", default=0, show_default=True, help="Seed of the suite's randomised parts (k-means).")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Markdown file to write the table to (atomically).")
+def main(runs: tuple[Path, ...], seed: int, out: Path | None) -> None:
+    """Re-score RUNS (folders written by `dyadbench eval --out`) with the L2L-line suite."""
+    rows = []
+    for run in runs:
+        result = load_result(run / "result.json")
+        report = l2l.score_arrays(run_items(result, run), seed=seed)
+        rows.append({"model": result.model.name, "context": result.protocol.context, "items": report.n_scored,
+                     **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
+        click.echo(f"{result.model.name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)
+    text = table(rows)
+    click.echo(text)
+    if out is not None:
+        atomic.write_text(out, text + "\n")
+
+
+if __name__ == "__main__":
+    main()
