@@ -1,0 +1,1 @@
+"""Shipped TIMAR checkpoints (package data): ``timar-tiny.pt`` and ``timar-stream-tiny.pt``."""

@@ -1,0 +1,98 @@
+"""Training windows for TIMAR: features computed once per clip, 8-turn windows of both directions.
+
+Each clip is cut to whole turns; the speech frontend runs once per participant, chunk by chunk. A
+window is ``max_turns`` consecutive turns starting at a multiple of ``stride_turns`` turns, in both
+directions (agent = each participant, user = the other). The data digest hashes the clip ids, motion
+and audio bytes, so a checkpoint records exactly which data it was trained on.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+from tqdm import tqdm
+
+from dyadbench.datasets.base import ClipSource, DyadicClip
+from dyadbench.errors import InputError
+from models.timar.config import TimarConfig
+from models.timar.frontends import SpeechFrontend
+
+
+@dataclass(frozen=True)
+class ParticipantFeatures:
+    speech: np.ndarray  # (turns·F, speech_dim) float32
+    motion: np.ndarray  # (turns·F, 56) float32
+
+
+def clip_features(clip: DyadicClip, frontend: SpeechFrontend, cfg: TimarConfig) -> dict[str, ParticipantFeatures]:
+    if len(clip.participants) != 2 or clip.layout != "flame56":
+        raise InputError(clip.clip_id, "TIMAR trains on two-participant flame56 clips")
+    if clip.fps * cfg.samples_per_turn != clip.sample_rate * cfg.frames_per_turn:
+        raise InputError(clip.clip_id, f"{clip.fps} fps / {clip.sample_rate} Hz do not match the model's turn of "
+                                       f"{cfg.frames_per_turn} frames / {cfg.samples_per_turn} samples")
+    turns = clip.num_frames // cfg.frames_per_turn
+    frames = turns * cfg.frames_per_turn
+    out = {}
+    for p in clip.participants:
+        audio = np.zeros(turns * cfg.samples_per_turn, np.float32)
+        usable = min(len(p.audio), len(audio))
+        audio[:usable] = p.audio[:usable]
+        out[p.name] = ParticipantFeatures(frontend.features(audio, turns),
+                                          np.asarray(p.motion[:frames], dtype=np.float32))
+    return out
+
+
+def data_digest(source: ClipSource) -> str:
+    """sha256 over the sorted clip ids and each participant's name, motion and audio bytes."""
+    h = hashlib.sha256()
+    for clip in source:
+        h.update(clip.clip_id.encode())
+        for p in clip.participants:
+            h.update(p.name.encode())
+            h.update(np.ascontiguousarray(p.motion, dtype=np.float32).tobytes())
+            h.update(np.ascontiguousarray(p.audio, dtype=np.float32).tobytes())
+    return h.hexdigest()
+
+
+class WindowDataset(torch.utils.data.Dataset):
+    """Items: dict of user_speech, user_motion, agent_speech, agent_motion, each (max_turns·F, ·)."""
+
+    def __init__(self, source: ClipSource, frontend: SpeechFrontend, cfg: TimarConfig, stride_turns: int = 8,
+                 progress: bool = True):
+        if stride_turns < 1:
+            raise InputError(source.describe().get("dataset"), f"stride must be >= 1 turn, got {stride_turns}")
+        self.cfg = cfg
+        self.features: list[dict[str, ParticipantFeatures]] = []
+        self.windows: list[tuple[int, str, str, int]] = []  # (clip index, agent, user, first frame)
+        F, width = cfg.frames_per_turn, cfg.max_turns
+        for clip in tqdm(source, total=len(source), desc="speech features", disable=not progress):
+            feats = clip_features(clip, frontend, cfg)
+            turns = clip.num_frames // F
+            index = len(self.features)
+            self.features.append(feats)
+            names = [p.name for p in clip.participants]
+            for start in range(0, turns - width + 1, stride_turns):
+                for agent, user in (names, names[::-1]):
+                    self.windows.append((index, agent, user, start * F))
+        if not self.windows:
+            raise InputError(source.describe().get("dataset"), f"no clip holds {width} whole turns to train on")
+
+    def __len__(self) -> int:
+        return len(self.windows)
+
+    def __getitem__(self, i: int) -> dict[str, torch.Tensor]:
+        index, agent, user, start = self.windows[i]
+        stop = start + self.cfg.max_turns * self.cfg.frames_per_turn
+        a, u = self.features[index][agent], self.features[index][user]
+        return {"user_speech": torch.from_numpy(u.speech[start:stop]),
+                "user_motion": torch.from_numpy(u.motion[start:stop]),
+                "agent_speech": torch.from_numpy(a.speech[start:stop]),
+                "agent_motion": torch.from_numpy(a.motion[start:stop])}
+
+    def speech_statistics(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-dimension mean and standard deviation of all speech features (normalisation)."""
+        allf = np.concatenate([f.speech for feats in self.features for f in feats.values()], axis=0)
+        return allf.mean(0), np.maximum(allf.std(0), 1e-6)

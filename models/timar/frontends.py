@@ -1,0 +1,81 @@
+"""Speech frontends of TIMAR: per-turn features aligned to motion frames, computed chunk by chunk.
+
+Each 1-s chunk of audio is featurised on its own (no information crosses a turn boundary), giving
+``frames_per_turn`` rows per chunk:
+
+- ``logmel`` (embedded default, no download): :func:`dyadbench.features.logmel.logmel_frames`, 40 bands.
+- ``wav2vec``: the frozen wav2vec 2.0 frontend of :mod:`dyadbench.features.wav2vec` (1024-d), used
+  when its weights are available locally (a clear error otherwise; nothing is downloaded).
+
+The trainable Linear(speech_dim → d_t) that follows lives in the model.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from dyadbench.errors import InputError
+from dyadbench.features.logmel import logmel_frames
+from models.timar.config import SPEECH_DIMS, TimarConfig
+
+
+class SpeechFrontend:
+    """Features (turns·F, dim) float32 of ``turns`` whole chunks of ``samples_per_turn`` samples."""
+
+    name: str
+    dim: int
+
+    def __init__(self, cfg: TimarConfig, sample_rate: int = 16_000, fps: float = 25.0):
+        self.samples_per_turn, self.frames_per_turn = cfg.samples_per_turn, cfg.frames_per_turn
+        self.sample_rate, self.fps = sample_rate, fps
+        self.dim = SPEECH_DIMS[self.name]
+
+    def chunk_features(self, chunk: np.ndarray) -> np.ndarray:
+        raise NotImplementedError
+
+    def features(self, audio: np.ndarray, turns: int) -> np.ndarray:
+        """Each chunk featurised on its own (subclasses may featurise the whole audio at once)."""
+        audio = np.asarray(audio, dtype=np.float32)
+        if audio.ndim != 1 or audio.shape[0] < turns * self.samples_per_turn:
+            raise InputError("speech", f"need mono audio of at least {turns} x {self.samples_per_turn} samples, "
+                                       f"got shape {audio.shape}")
+        rows = [self.chunk_features(audio[i * self.samples_per_turn:(i + 1) * self.samples_per_turn])
+                for i in range(turns)]
+        return np.concatenate(rows, axis=0) if rows else np.zeros((0, self.dim), np.float32)
+
+
+class LogMelFrontend(SpeechFrontend):
+    name = "logmel"
+
+    def chunk_features(self, chunk: np.ndarray) -> np.ndarray:
+        return logmel_frames(chunk, self.sample_rate, self.fps, n_mels=self.dim)
+
+
+class Wav2VecFrontend(SpeechFrontend):
+    """:func:`dyadbench.features.wav2vec.wav2vec_frames` on the audio passed in.
+
+    That function normalises the waveform it is given before cutting 1-s chunks (as TIMAR does with
+    whole clips): in training the whole clip, in streaming only the turns the model is handed, so the
+    streamed features stay causal.
+    """
+
+    name = "wav2vec"
+
+    def __init__(self, cfg: TimarConfig, sample_rate: int = 16_000, fps: float = 25.0, weights: str | None = None):
+        super().__init__(cfg, sample_rate, fps)
+        from dyadbench.features import wav2vec  # noqa: PLC0415  (imports transformers lazily)
+
+        self._wav2vec = wav2vec
+        self._model = wav2vec.load_wav2vec(weights or wav2vec.DEFAULT_MODEL)
+        self.dim = int(self._model.config.hidden_size)
+
+    def features(self, audio: np.ndarray, turns: int) -> np.ndarray:
+        audio = np.asarray(audio, dtype=np.float32)[:turns * self.samples_per_turn]
+        return self._wav2vec.wav2vec_frames(self._model, audio, self.sample_rate, self.fps)
+
+
+def make_frontend(cfg: TimarConfig, sample_rate: int = 16_000, fps: float = 25.0,
+                  wav2vec_weights: str | None = None) -> SpeechFrontend:
+    if cfg.speech_frontend == "logmel":
+        return LogMelFrontend(cfg, sample_rate, fps)
+    return Wav2VecFrontend(cfg, sample_rate, fps, wav2vec_weights)

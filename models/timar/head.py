@@ -1,0 +1,86 @@
+"""The lightweight per-token diffusion head: an MLP of residual blocks with adaptive LayerNorm.
+
+``y = cond_embed(z) + time_embed(t)`` modulates every block: ``h = LN(x)·(1 + scale) + shift``,
+``x ← x + gate · MLP(h)``; a final modulated LayerNorm and a linear layer give 2·C channels
+(x0 prediction and the variance interpolation). Modulations and the output layer start at zero.
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+from torch import nn
+
+
+def _modulate(x: torch.Tensor, shift: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
+    return x * (1 + scale) + shift
+
+
+class TimestepEmbedder(nn.Module):
+    """Sinusoidal embedding of the (original) diffusion timestep followed by a 2-layer SiLU MLP."""
+
+    def __init__(self, width: int, frequency_size: int = 256):
+        super().__init__()
+        self.frequency_size = frequency_size
+        self.mlp = nn.Sequential(nn.Linear(frequency_size, width), nn.SiLU(), nn.Linear(width, width))
+
+    def forward(self, t: torch.Tensor) -> torch.Tensor:
+        half = self.frequency_size // 2
+        freqs = torch.exp(-math.log(10_000) * torch.arange(half, dtype=torch.float32, device=t.device) / half)
+        args = t.float()[:, None] * freqs[None]
+        return self.mlp(torch.cat([torch.cos(args), torch.sin(args)], dim=-1))
+
+
+class ResBlock(nn.Module):
+    def __init__(self, width: int):
+        super().__init__()
+        self.norm = nn.LayerNorm(width, eps=1e-6)
+        self.mlp = nn.Sequential(nn.Linear(width, width), nn.SiLU(), nn.Linear(width, width))
+        self.modulation = nn.Sequential(nn.SiLU(), nn.Linear(width, 3 * width))
+
+    def forward(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
+        shift, scale, gate = self.modulation(y).chunk(3, dim=-1)
+        return x + gate * self.mlp(_modulate(self.norm(x), shift, scale))
+
+
+class DiffusionHead(nn.Module):
+    """Maps (x_t (B, C), timestep (B,), condition (B, cond_dim)) to (B, 2C)."""
+
+    def __init__(self, channels: int, cond_dim: int, width: int, blocks: int):
+        super().__init__()
+        self.channels = channels
+        self.time_embed = TimestepEmbedder(width)
+        self.cond_embed = nn.Linear(cond_dim, width)
+        self.input_proj = nn.Linear(channels, width)
+        self.blocks = nn.ModuleList(ResBlock(width) for _ in range(blocks))
+        self.final_norm = nn.LayerNorm(width, elementwise_affine=False, eps=1e-6)
+        self.final_modulation = nn.Sequential(nn.SiLU(), nn.Linear(width, 2 * width))
+        self.final = nn.Linear(width, 2 * channels)
+        self._init_weights()
+
+    def _init_weights(self) -> None:
+        for module in self.modules():
+            if isinstance(module, nn.Linear):
+                nn.init.xavier_uniform_(module.weight)
+                nn.init.zeros_(module.bias)
+        nn.init.normal_(self.time_embed.mlp[0].weight, std=0.02)
+        nn.init.normal_(self.time_embed.mlp[2].weight, std=0.02)
+        for block in self.blocks:
+            nn.init.zeros_(block.modulation[-1].weight)
+            nn.init.zeros_(block.modulation[-1].bias)
+        for layer in (self.final_modulation[-1], self.final):
+            nn.init.zeros_(layer.weight)
+            nn.init.zeros_(layer.bias)
+
+    def forward(self, x: torch.Tensor, t: torch.Tensor, cond: torch.Tensor) -> torch.Tensor:
+        return self.denoise(x, t, self.cond_embed(cond))
+
+    def denoise(self, x: torch.Tensor, t: torch.Tensor, cond_embedding: torch.Tensor) -> torch.Tensor:
+        """``forward`` with ``cond_embed(cond)`` computed once by the caller (reused over sampling steps)."""
+        y = self.time_embed(t) + cond_embedding
+        h = self.input_proj(x)
+        for block in self.blocks:
+            h = block(h, y)
+        shift, scale = self.final_modulation(y).chunk(2, dim=-1)
+        return self.final(_modulate(self.final_norm(h), shift, scale))

@@ -1,0 +1,67 @@
+"""Model factories registered as ``timar`` and ``timar-stream`` in :data:`dyadbench.registry.MODELS`.
+
+Both load a checkpoint written by ``dyadbench train timar`` / ``timar-stream``: ``options.weights`` if
+given, else the tiny checkpoint shipped with the package (``models/timar/checkpoints/``). Options:
+``cfg_scale`` (classifier-free guidance, 1 = off as in the published runs), ``seed`` (per-stream
+seeds come from the protocol), ``device``, and in ``extra``: ``cache`` (default True; False re-encodes
+as the released implementation does), ``temperature`` (default 1), ``wav2vec_weights`` (local folder of
+the wav2vec 2.0 model for configurations that use it).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from dyadbench.errors import InputError
+from dyadbench.protocol.interface import ModelInfo, ModelOptions
+from dyadbench.training.checkpoint import file_digest, load_checkpoint
+from models.timar.config import TimarConfig
+from models.timar.frontends import make_frontend
+from models.timar.model import TimarModel
+from models.timar.streaming import BandStream, FaithfulStream
+
+CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
+SHIPPED = {"timar": CHECKPOINT_DIR / "timar-tiny.pt", "timar-stream": CHECKPOINT_DIR / "timar-stream-tiny.pt"}
+TRAIN_HINT = {"timar": "dyadbench train timar --config tiny --export PATH",
+              "timar-stream": "dyadbench train timar-stream --config tiny --export PATH"}
+
+
+def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]:
+    """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta)."""
+    path = Path(weights) if weights is not None else SHIPPED[name]
+    if not path.is_file():
+        where = "given with --weights" if weights is not None else "shipped with the package"
+        raise InputError(path, f"no {name} checkpoint ({where}); train one with `{TRAIN_HINT[name]}` "
+                               f"and pass it with --weights PATH")
+    payload = load_checkpoint(path, expect_model=name)
+    cfg = TimarConfig.from_dict(payload["config"])
+    model = TimarModel(cfg)
+    try:
+        model.load_state_dict(payload["model"])
+    except RuntimeError as exc:
+        raise InputError(path, f"weights do not fit the {cfg.name} configuration: {exc}") from None
+    return model, path, payload["meta"]
+
+
+def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | type[BandStream]):
+    model, path, meta = load_timar(name, options.weights)
+    use_cache = bool(options.extra.get("cache", True))
+    temperature = float(options.extra.get("temperature", 1.0))
+    info = ModelInfo(name=name, version=str(meta.get("dyadbench_version", "1")), weights_digest=file_digest(path),
+                     weights_path=str(path),
+                     config={**model.cfg.to_dict(), "cfg_scale": options.cfg_scale, "cache": use_cache,
+                             "temperature": temperature, "data_digest": meta.get("data_digest"),
+                             "train_epochs": meta.get("epoch"), "train_command": meta.get("command")})
+    frontend = make_frontend(model.cfg, wav2vec_weights=options.extra.get("wav2vec_weights"))
+    return stream_cls(model, frontend, info, cfg_scale=options.cfg_scale, use_cache=use_cache,
+                      temperature=temperature, device=options.device)
+
+
+def build_timar(options: ModelOptions) -> FaithfulStream:
+    """The faithful TIMAR (window-indexed positions, exact cache while the window grows)."""
+    return _build("timar", options, FaithfulStream)
+
+
+def build_timar_stream(options: ModelOptions) -> BandStream:
+    """The streaming-native TIMAR variant (per-turn sliding band, exact cache at every turn)."""
+    return _build("timar-stream", options, BandStream)
