@@ -58,11 +58,12 @@ def _config(inputs: dict, seed: int, jobs: int, reactions: int, frames: int, nei
 
 
 def _report(stems: list[str], predictions, listener, speaker, neighbours, *, jobs: int, seed: int,
-            inputs: dict, notes: list[str]) -> ScoreReport:
+            inputs: dict, notes: list[str], reactions: int | None = suite.REACTIONS) -> ScoreReport:
     previous = numba.get_num_threads()
     numba.set_num_threads(max(1, min(jobs, numba.config.NUMBA_NUM_THREADS)))
     try:
-        metrics, per_sample = suite.evaluate(predictions, listener, speaker, neighbours, progress=True)
+        metrics, per_sample = suite.evaluate(predictions, listener, speaker, neighbours, reactions=reactions,
+                                             progress=True)
     finally:
         numba.set_num_threads(previous)
     rows = [{"clip": stem, **{k: float(per_sample[k][i]) for k in PER_SAMPLE_KEYS}} for i, stem in enumerate(stems)]
@@ -97,7 +98,7 @@ def score_arrays(items: list[ScoreItem], *, neighbours: np.ndarray | None = None
         raise InputError(items[0].stem, f"predictions differ in shape: {sorted(shapes)}")
     return _report([i.stem for i in items], np.stack(preds), np.stack([i.gt for i in items]),
                    np.stack([i.partner for i in items]), neighbours, jobs=jobs, seed=seed,
-                   inputs={"pred": "in-memory", "gt": "in-memory"}, notes=notes)
+                   inputs={"pred": "in-memory", "gt": "in-memory"}, notes=notes, reactions=None)
 
 
 def _npz_keys(path: Path) -> list[str]:
