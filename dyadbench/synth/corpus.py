@@ -36,16 +36,17 @@ Identity: a per-person expression offset (population mean + N(0, 0.3) x per-dim 
 (N(0, [0.03, 0.04, 0.02]) rad around [0.1, 0.12, 0]) are constant over a person's clips; they are not
 inferable from speech, so they set the floor of every model's MSE.
 
-Measured (seed 0; reproduce with the tests in tests/test_synth_structure.py): jaw opening vs own speech
-RMS envelope r = 0.74 at +2 frames (0.25 at lag 0); the listener's head-pitch speed averaged around the
-partner's speech offsets (energy VAD) peaks +12 frames after them (z = 5; before the offset |z| < 0.6)
-and the listener's smile mode peaks at +19 frames. Statistics sit within a factor 3 of the two real
-DualTalk clips of :mod:`~dyadbench.synth.calibration` (e.g. exp per-dim std 0.45, head std 0.021 rad,
-jaw opening 0.043 +- 0.028 rad; ood is livelier: 0.60, 0.032, 0.072 +- 0.037).
+Measured (tests/test_synth_structure.py, 10 train clips, seed 5): jaw opening vs own speech RMS
+envelope r = 0.73 at +2 frames (0.24 at lag 0); the listener's z-scored head-pitch speed averaged around
+the partner's speech offsets (energy VAD) peaks +9 frames after them at 0.86 SD (at most 0.10 before
+the offset); the listener's smile mode peaks at +19 frames (0.66 SD; 0.06 at the offset). Statistics
+sit within a factor 3 of the two real DualTalk clips of :mod:`~dyadbench.synth.calibration` (e.g. exp
+per-dim std 0.45, head std 0.021 rad, jaw opening 0.043 +- 0.028 rad; ood is livelier: 0.60, 0.032,
+0.072 +- 0.037).
 
 Consequences downstream: own speech predicts jaw, articulation, head prosody and brow raises; the
 partner's speech predicts nods and smiles after its phrase ends; the partner's motion predicts mirrored
-affect. On 2 x 20 test clips, MSE exp / jaw / pose (raw) of mean-frame (train mean) is
+affect (checked by tests/test_synth_learnable.py). On 2 x 20 test clips, MSE exp / jaw / pose (raw) of mean-frame (train mean) is
 0.365 / 4.3e-4 / 1.68e-3; copying the partner (mime) is worse on MSE, 0.467 / 1.0e-3 / 2.4e-3, but has
 realistic variance and diversity (mean-frame has none); the partner lagged by 12 frames (lagged mirror)
 is closer than mime on exp (0.439); a causal ridge regression on own and partner speech features and
