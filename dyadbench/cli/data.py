@@ -32,7 +32,8 @@ def data() -> None:
 @click.option("--layout", default="dualtalk", show_default=True, type=click.Choice(list(LAYOUTS)),
               help=LAYOUT_HELP)
 @click.option("--split", default="test", show_default=True,
-              help="Split to generate: train, test or ood (ood uses unseen people and turn statistics).")
+              help="Split to generate. dualtalk: train, test, ood (unseen people and turn statistics) or "
+                   "val; the other layouts name theirs in their own terms (react: val, test; l2l: train, test).")
 @click.option("--clips", "clips", default=None, type=click.IntRange(min=1),
               help="Number of dialogues (sessions). Default: the split's standard size "
                    "(dualtalk: test 533, ood 377, train 800). Clip i is the same whatever the count.")
