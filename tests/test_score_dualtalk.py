@@ -268,3 +268,11 @@ def test_split_names_a_sub_folder_of_the_root(dataset, tmp_path, capsys):
     assert code == 0 and "scored 6 of 6" in out
     code, _, err = run(capsys, pred, "--gt", root, "--split", "ood")
     assert code == 2 and "ood" in err and "split folder" in err
+
+
+def test_all_missing_ground_truth_is_counted(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    for f in gt.glob("dlgC_*.npz"):
+        f.unlink()
+    code, _, err = run(capsys, pred, "--gt", gt)
+    assert code == 2 and "dlgC_speaker1.npz" in err and "and 3 more ground-truth files are missing" in err

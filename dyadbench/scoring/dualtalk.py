@@ -251,13 +251,16 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
     gt_dir = Path(gt) / split if split else Path(gt)
     expected = ground_truth_stems(gt_dir)
     predictions = open_predictions(pred)
-    jobs_list = []
+    jobs_list, absent = [], []
     for stem, prediction in predictions.items():
         own = gt_dir / f"{stem}.npz"
         partner = gt_dir / f"{partner_stem(stem, prediction.name)}.npz"
-        for path, role in ((own, "ground truth"), (partner, "partner ground truth")):
-            if not path.is_file():
-                raise InputError(path, f"{role} of prediction {prediction.name} not found")
+        absent += [(path, role, prediction.name) for path, role in
+                   ((own, "ground truth"), (partner, "partner ground truth")) if not path.is_file()]
         jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, own, partner))
+    if absent:
+        path, role, name = absent[0]
+        more = f" (and {len(absent) - 1} more ground-truth files are missing)" if len(absent) > 1 else ""
+        raise InputError(path, f"{role} of prediction {name} not found{more}")
     return _run(jobs_list, jobs=jobs, seed=seed, expected=expected,
                 inputs={"pred": str(pred), "gt": str(gt_dir)})
