@@ -14,8 +14,7 @@ import numpy as np
 
 from dyadbench.synth.styles import Style, TurnStats
 
-MIN_TURN_S = 1.5
-PHRASE_KINDS = ("phrase", "backchannel", "interjection")
+MIN_TURN_LENGTH_S = 1.5
 
 
 @dataclass(frozen=True)
@@ -23,7 +22,7 @@ class Track:
     """One participant's speech plan. Syllable arrays are sorted by onset."""
 
     phrases: np.ndarray  # (P, 2) start, end (s)
-    kinds: tuple[str, ...]  # (P,) one of PHRASE_KINDS
+    kinds: tuple[str, ...]  # (P,) "phrase", "backchannel" or "interjection"
     onset: np.ndarray  # (N,) s
     dur: np.ndarray  # (N,) s
     amp: np.ndarray  # (N,) peak envelope
@@ -57,7 +56,7 @@ def _turns(r: np.random.Generator, duration: float, stats: TurnStats, styles: tu
     while t < duration - 0.5:
         t = max(t, last_end[holder] + 0.3)
         mean = stats.turn_mean_s * styles[holder].turn_factor
-        end = min(t + max(MIN_TURN_S, float(r.gamma(2.0, mean / 2.0))), duration)
+        end = min(t + max(MIN_TURN_LENGTH_S, float(r.gamma(2.0, mean / 2.0))), duration)
         if end - t >= 0.5:
             turns.append((holder, t, end))
             last_end[holder] = end
