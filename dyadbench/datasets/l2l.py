@@ -201,15 +201,16 @@ def validate_folder(folder: str | Path, progress: bool = True) -> ValidationRepo
                 report.warn(split_dir, "missing split folder")
                 continue
             hs = HostSplit(host, split_dir)
-            missing = [hs.path(p, k) for p in (0, 1) for k in KINDS if not hs.path(p, k).is_file()]
-            for path in missing:
-                report.error(path, "missing array")
-            if missing:
+            for path in (hs.path(p, k) for p in (0, 1) for k in KINDS):
+                if not path.is_file():
+                    report.error(path, "missing array")
+            paired = [hs.path(hs.listener, "list_faces")] + [hs.path(1 - hs.listener, k) for k in KINDS[1:]]
+            if not all(p.is_file() for p in paired):
                 continue
             try:
                 report.checked += hs.count()
                 if len(hs.speaker_files) != hs.count():
-                    report.error(hs.path(1 - hs.listener, "speak_files"), "disagrees with the paired arrays on N")
+                    report.error(paired[-1], "disagrees with the paired arrays on the number of windows")
             except InputError as exc:
                 report.add(exc)
     return report

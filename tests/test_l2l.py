@@ -1,0 +1,162 @@
+"""Learning2Listen line: pairing rule, layout reading/validation, writer, suite values, scoring end to end."""
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dyadbench.cli import cli
+from dyadbench.datasets import l2l as layout
+from dyadbench.errors import InputError
+from dyadbench.metrics import dualtalk
+from dyadbench.metrics.entropy import kmeans_entropy
+from dyadbench.metrics.l2l import L2LParams, keys, split_metrics
+from dyadbench.motion import l2l_to_flame56
+from dyadbench.scoring.l2l import score_arrays, score_paths
+from dyadbench.scoring.report import ScoreItem
+from dyadbench.synth.l2l_writer import resample, write_l2l_split
+
+
+def _write_host(folder, n0, n1, seed=0):
+    """Hand-made arrays: person p's faces carry the value 10 * p + kind code in every motion dim."""
+    rng = np.random.default_rng(seed)
+    folder.mkdir(parents=True)
+    counts = {0: n0, 1: n1}  # windows where person p listens
+    for p in (0, 1):
+        talker_n = counts[1 - p]
+        np.save(folder / layout.array_name(p, "list_faces"), np.full((counts[p], 64, 184), 10.0 * p + 1, np.float32))
+        np.save(folder / layout.array_name(p, "speak_faces"), np.full((talker_n, 64, 184), 10.0 * p + 2, np.float32))
+        np.save(folder / layout.array_name(p, "speak_audio"), rng.random((talker_n, 256, 128)).astype(np.float32))
+        np.save(folder / layout.array_name(p, "speak_files"), np.full((talker_n, 64, 3), "v", dtype="<U8"))
+
+
+def test_host_is_the_listener_with_fallon_swapped(tmp_path):
+    _write_host(tmp_path / "conan" / "test", 3, 5)
+    _write_host(tmp_path / "fallon" / "test", 3, 5)
+    stems, listener, speaker = layout.ground_truth(tmp_path, "test")
+    assert len(stems) == 3 + 5
+    assert stems[0] == "conan_test_00000_listener" and stems[3] == "fallon_test_00000_listener"
+    assert (listener[:3] == 1).all() and (speaker[:3] == 12).all()  # conan: p0 listens, p1 speaks
+    assert (listener[3:] == 11).all() and (speaker[3:] == 2).all()  # fallon: p1 listens, p0 speaks
+    assert layout.listener_person("fallon") == 1 and layout.listener_person("kimmel") == 0
+
+
+def test_motion_is_reordered_to_flame56(tmp_path):
+    folder = tmp_path / "trevor" / "test"
+    _write_host(folder, 2, 2)
+    faces = np.zeros((2, 64, 184), np.float32)
+    faces[..., 50:53] = 0.1  # L2L rotation
+    faces[..., 53:56] = 0.2  # L2L jaw
+    np.save(folder / layout.array_name(0, "list_faces"), faces)
+    clip = layout.open_split(tmp_path, "test").load("trevor_test_00000")
+    motion = clip.participants[0].motion
+    assert clip.participants[0].name == "listener" and clip.fps == 30.0
+    np.testing.assert_array_equal(motion, l2l_to_flame56(faces[0]))
+    assert np.allclose(motion[:, 50:53], 0.2) and np.allclose(motion[:, 53:56], 0.1)  # [exp | jaw | rotation]
+    assert clip.meta["speaker_mel"].shape == (256, 128)
+
+
+def test_validation_reports_mismatched_pairs(tmp_path):
+    _write_host(tmp_path / "kimmel" / "test", 3, 4)
+    np.save(tmp_path / "kimmel" / "test" / layout.array_name(1, "speak_faces"), np.zeros((2, 64, 184), np.float32))
+    (tmp_path / "kimmel" / "test" / layout.array_name(0, "speak_files")).unlink()  # not paired on kimmel
+    report = layout.validate_folder(tmp_path, progress=False)
+    text = "\n".join(report.errors)
+    assert "disagree on the number of windows" in text and "p0_speak_files_clean_deca.npy: missing" in text
+    with pytest.raises(InputError, match="splits train, test"):
+        layout.open_split(tmp_path, "val")
+
+
+def test_resample_keeps_linear_motion_linear():
+    x = np.arange(26, dtype=float)[:, None] * 0.5  # 25 fps ramp over 1 s
+    y = resample(x, 25.0, 30.0)
+    assert len(y) == 31
+    np.testing.assert_allclose(y[:, 0], np.arange(31) * 25 / 30 * 0.5)
+
+
+@pytest.fixture(scope="module")
+def l2l_root(tmp_path_factory):
+    root = tmp_path_factory.mktemp("l2l")
+    write_l2l_split(root, split="test", clips=2, seed=0, progress=False)
+    return root
+
+
+def test_written_split(l2l_root):
+    assert layout.validate_folder(l2l_root, progress=False).errors == []
+    info = layout.folder_info(l2l_root, progress=False)["hosts"]["synth"]
+    stems, listener, speaker = layout.ground_truth(l2l_root, "test")
+    assert info["test"]["windows"] == len(stems) > 0 and listener.shape == (len(stems), 64, 56)
+    assert not np.array_equal(listener, speaker)
+    marker = json.loads((l2l_root / "synth" / "test" / "synthetic.json").read_text())
+    assert marker["windows"]["p0_listening"] == len(stems)
+
+
+def _sequences(seed, n=6, t=64):
+    rng = np.random.default_rng(seed)
+    gts = [rng.normal(size=(t, 56)) for _ in range(n)]
+    speakers = [0.5 * g + rng.normal(size=(t, 56)) for g in gts]
+    return gts, speakers
+
+
+def test_ground_truth_as_prediction():
+    gts, speakers = _sequences(0)
+    metrics, per_sequence = split_metrics(gts, gts, speakers)
+    for c in ("exp", "pose", "jaw"):
+        assert metrics[f"l2_{c}"] == 0.0 and metrics[f"rpcc_{c}"] == 0.0
+        assert metrics[f"var_{c}"] == metrics[f"var_gt_{c}"]
+        assert metrics[f"si_{c}"] == metrics[f"si_gt_{c}"]
+        assert metrics[f"fd_{c}"] == pytest.approx(0.0, abs=1e-6)
+    assert list(metrics) == keys()
+    assert len(per_sequence) == 6
+
+
+def test_suite_matches_its_definition():
+    gts, speakers = _sequences(1)
+    rng = np.random.default_rng(2)
+    preds = [g + 0.3 * rng.normal(size=g.shape) for g in gts]
+    params = L2LParams(si_k={"exp": 5, "pose": 4, "jaw": 3})
+    metrics, _ = split_metrics(preds, gts, speakers, params)
+    exp = slice(0, 50)
+    pooled = [np.concatenate([x[:, exp] for x in xs]) for xs in (preds, gts, speakers)]
+    assert metrics["l2_exp"] == pytest.approx(np.mean((pooled[0] - pooled[1]) ** 2), rel=1e-12)
+    assert metrics["fd_exp"] == pytest.approx(np.mean([dualtalk.fd(p[:, exp], g[:, exp])
+                                                       for p, g in zip(preds, gts)]), rel=1e-12)
+    assert metrics["pfd_exp"] == pytest.approx(np.mean([dualtalk.pfd(p[:, exp], g[:, exp], a[:, exp])
+                                                        for p, g, a in zip(preds, gts, speakers)]), rel=1e-12)
+    assert metrics["si_exp"] == kmeans_entropy(fit_on=pooled[1], label=pooled[0], k=5)
+    assert metrics["var_exp"] == pytest.approx(np.mean(np.var(pooled[0], axis=0)), rel=1e-12)
+    rho = lambda x, y: np.corrcoef(x.ravel(), y.ravel())[0, 1]  # noqa: E731
+    assert metrics["rpcc_exp"] == pytest.approx(abs(rho(pooled[1], pooled[2]) - rho(pooled[0], pooled[2])), rel=1e-12)
+
+
+def test_score_arrays_excludes_nan_and_needs_the_speaker():
+    gts, speakers = _sequences(3, n=4)
+    preds = [g.copy() for g in gts]
+    preds[1][3, 4] = np.nan
+    report = score_arrays([ScoreItem(f"w{i}", p, g, a) for i, (p, g, a) in enumerate(zip(preds, gts, speakers))])
+    assert report.n_scored == 3 and report.excluded[0]["clip"] == "w1"
+    assert report.config["parameters"]["si_k"] == {"exp": 15, "pose": 9, "jaw": 9}
+    with pytest.raises(InputError, match="speaker"):
+        score_arrays([ScoreItem("w0", gts[0], gts[0])])
+
+
+def test_cli_end_to_end(tmp_path):
+    runner = CliRunner()
+    root = tmp_path / "l2l"
+    result = runner.invoke(cli, ["data", "synth", "--layout", "l2l", "--out", str(root), "--split", "test",
+                                 "--clips", "1"])
+    assert result.exit_code == 0, result.output
+    stems, listener, _ = layout.ground_truth(root, "test")
+    preds = tmp_path / "preds"
+    preds.mkdir()
+    for stem, motion in zip(stems[:-1], listener[:-1]):
+        np.save(preds / f"{stem}.npy", motion)
+    result = runner.invoke(cli, ["score", str(preds), "--suite", "l2l", "--gt", str(root), "--out", str(tmp_path / "r")])
+    assert result.exit_code == 0, result.output
+    saved = json.loads((tmp_path / "r" / "results.json").read_text())
+    assert saved["metrics"]["l2_exp"] == 0.0 and saved["metrics"]["rpcc_pose"] == 0.0
+    assert saved["coverage"]["missing"] == [stems[-1]]
+    np.savez(tmp_path / "wrong.npz", other=listener[0])
+    with pytest.raises(InputError, match="no prediction named like"):
+        score_paths(tmp_path / "wrong.npz", root)
