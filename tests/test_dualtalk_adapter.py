@@ -1,6 +1,5 @@
 """DualTalk adapter: round trip of generated folders, clear errors on bad folders, the real demo clips."""
 
-import shutil
 import struct
 from pathlib import Path
 
