@@ -187,6 +187,15 @@ def test_clip_metrics_keys_and_zeros_on_identity():
         assert values[f"mse_{c}"] == 0.0 and values[f"rpcc_{c}"] == 0.0 and values[f"sts_{c}"] == 0.0
         assert abs(values[f"fd_{c}"]) < 1e-9
         assert values[f"var_pred_{c}"] == values[f"var_gt_{c}"]
+        assert values[f"div_pred_{c}"] == values[f"div_gt_{c}"]  # same frame pairs for both
+
+
+def test_clip_diversity_follows_the_seed_rule():
+    p, g, a = _clip(4, 130)
+    values = m.clip_metrics(p, g, a, seed=77)
+    for i, (c, cols) in enumerate((("exp", slice(0, 50)), ("jaw", slice(50, 53)), ("pose", slice(53, 56)))):
+        assert values[f"div_pred_{c}"] == m.diversity(p[:, cols], np.random.default_rng([77, i]))
+        assert values[f"div_gt_{c}"] == m.diversity(g[:, cols], np.random.default_rng([77, i]))
 
 
 def test_clip_metrics_components_follow_the_layout():

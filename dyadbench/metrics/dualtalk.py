@@ -9,7 +9,9 @@ in, numbers out). ``p`` is the prediction, ``g`` the agent's ground truth and ``
 Differences from the reference scripts, all deliberate and documented:
 
 - diversity draws its frame indices from a seeded :class:`numpy.random.Generator` (the reference
-  uses the unseeded global RNG); below :data:`DIVERSITY_TIMES` frames it is NaN instead of crashing;
+  uses the unseeded global RNG), the same frame pairs for the prediction and the ground truth of a
+  clip and component (so an exact copy of the ground truth has Div = Div-GT); below
+  :data:`DIVERSITY_TIMES` frames it is NaN instead of crashing;
 - both SID orientations are reported, as ``sid`` (DualTalk's: k-means fitted on the prediction,
   ground truth labelled) and ``sid_gtfit`` (fitted on the ground truth, prediction labelled; called
   ``sid`` in TIMAR's script).
@@ -219,9 +221,10 @@ def clip_metrics(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray, *, seed:
     """Every metric of the suite for one predicted agent: a dict keyed exactly :data:`KEYS`.
 
     ``pred``, ``gt`` and ``partner`` are (T, 56) [exp | jaw | pose]; they are truncated to the shortest
-    length first. ``seed`` seeds the one :class:`numpy.random.Generator` of the diversity draws,
-    consumed in a fixed order: for each component exp, jaw, pose: prediction (two draws), then
-    ground truth (two draws). The scorer passes ``derive_seed(run_seed, stem)``.
+    length first. ``seed`` seeds the diversity draws: component number i (exp 0, jaw 1, pose 2) uses
+    ``numpy.random.default_rng([seed, i])`` for the prediction and a second, identically seeded
+    generator for the ground truth, so both are measured on the same frame pairs. The scorer passes
+    ``derive_seed(run_seed, stem)``.
     Raises :class:`InputError` for fewer than :data:`MIN_FRAMES` common frames (SID needs k frames).
     """
     for name, array in (("prediction", pred), ("ground truth", gt), ("partner", partner)):
@@ -230,9 +233,8 @@ def clip_metrics(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray, *, seed:
     pred, gt, partner = truncate_to_shortest(*(np.asarray(x, dtype=np.float64) for x in (pred, gt, partner)))
     if pred.shape[0] < MIN_FRAMES:
         raise InputError(None, f"only {pred.shape[0]} common frames; the suite needs at least {MIN_FRAMES}")
-    rng = np.random.default_rng(seed)
     values: dict[str, dict[str, float]] = {m.name: {} for m in METRICS}
-    for c in FLAME_COMPONENTS:
+    for i, c in enumerate(FLAME_COMPONENTS):
         p, g, a = (FLAME56.component(x, c) for x in (pred, gt, partner))
         k = SID_K[c]
         values["fd"][c] = fd(p, g)
@@ -247,6 +249,6 @@ def clip_metrics(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray, *, seed:
         values["sts"][c] = sts(p, g)
         values["var_pred"][c] = variance(p)
         values["var_gt"][c] = variance(g)
-        values["div_pred"][c] = diversity(p, rng)
-        values["div_gt"][c] = diversity(g, rng)
+        values["div_pred"][c] = diversity(p, np.random.default_rng([seed, i]))
+        values["div_gt"][c] = diversity(g, np.random.default_rng([seed, i]))
     return {f"{name}_{c}": values[name][c] for name in (m.name for m in METRICS) for c in FLAME_COMPONENTS}

@@ -37,9 +37,9 @@ SUITE = "dualtalk"
 AGENT_STEM = re.compile(r"^(?P<clip>.+)_speaker(?P<k>[12])$")
 
 DIVERSITY_SEED_RULE = (
-    "numpy.random.default_rng(dyadbench.seeding.derive_seed(seed, stem)); for each component exp, jaw, "
-    "pose: two draws of 100 frame indices without replacement for the prediction, then two for the "
-    "ground truth")
+    "component i (exp 0, jaw 1, pose 2) of clip <stem>: numpy.random.default_rng([derive_seed(seed, stem), i])"
+    " draws 100 frame indices without replacement twice (u, then v); the prediction and the ground truth use "
+    "the same draws (derive_seed = dyadbench.seeding.derive_seed)")
 
 UNDEFINED_REASONS = {
     "div_pred": f"fewer than {suite.DIVERSITY_TIMES} frames",
