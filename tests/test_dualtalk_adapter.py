@@ -5,6 +5,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
 
 from dyadbench.datasets.dualtalk import DualTalkSource, folder_info, open_split, validate_folder
 from dyadbench.datasets.dualtalk_files import load_gt_npz
@@ -157,6 +160,18 @@ def test_float32_wav_like_the_release(tmp_path):
     assert np.array_equal(read_wav(tmp_path / "f.wav"), audio)
     (tmp_path / "p.wav").write_bytes(pcm)
     assert np.abs(read_wav(tmp_path / "p.wav") - audio).max() <= 1 / 32768
+
+
+@settings(max_examples=40, deadline=None)
+@given(arrays(np.float32, st.integers(0, 300), elements=st.floats(-1.0, 1.0, width=32)))
+def test_wav_round_trip_is_within_half_a_step_and_exact_on_the_grid(tmp_path_factory, audio):
+    path = tmp_path_factory.mktemp("wav") / "x.wav"
+    write_wav(path, audio)
+    back = read_wav(path)
+    assert back.shape == audio.shape and back.dtype == np.float32
+    assert np.all(np.abs(back - np.clip(audio, -1.0, 32767 / 32768)) <= 0.5 / 32768 + 1e-9)
+    write_wav(path, back)
+    assert np.array_equal(read_wav(path), back)  # samples on the 16-bit grid survive exactly
 
 
 def test_not_a_dualtalk_folder(tmp_path):

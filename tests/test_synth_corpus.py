@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
+from dyadbench.errors import ConfigError
 from dyadbench.features.activity import count_turns
 from dyadbench.synth.calibration import REAL_CLIPS, calibration_range, motion_statistics
 from dyadbench.synth.corpus import make_clip, make_clips
 from dyadbench.synth.styles import STYLE_RANGES, style_pool
-from dyadbench.errors import ConfigError
 
 
 @pytest.fixture(scope="module")
