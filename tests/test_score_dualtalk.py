@@ -276,3 +276,26 @@ def test_all_missing_ground_truth_is_counted(dataset, tmp_path, capsys):
         f.unlink()
     code, _, err = run(capsys, pred, "--gt", gt)
     assert code == 2 and "dlgC_speaker1.npz" in err and "and 3 more ground-truth files are missing" in err
+
+
+def test_a_clip_whose_metrics_fail_is_excluded_not_fatal(monkeypatch):
+    from dyadbench.metrics import dualtalk as suite
+
+    original = suite.clip_metrics
+
+    def failing_for_one(pred, gt, partner, *, seed):
+        if pred[0, 0] == 123.0:
+            raise ValueError("Fréchet distance: imaginary component 0.5 in sqrtm(S1 S2)")
+        return original(pred, gt, partner, seed=seed)
+
+    monkeypatch.setattr(suite, "clip_metrics", failing_for_one)
+    rng = np.random.default_rng(3)
+    bad = _smooth(rng)
+    bad[0, 0] = 123.0
+    items = [ScoreItem("a_speaker1", bad, _smooth(rng), _smooth(rng)),
+             ScoreItem("b_speaker1", _smooth(rng), _smooth(rng), _smooth(rng))]
+    report = score_arrays(items)
+    assert report.n_scored == 1
+    assert report.excluded == [{"clip": "a_speaker1",
+                                "reason": "could not be scored: Fréchet distance: imaginary component 0.5 "
+                                          "in sqrtm(S1 S2)"}]

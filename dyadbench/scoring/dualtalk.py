@@ -100,7 +100,10 @@ def _score_job(job: _Job) -> _Outcome:
     elif common < suite.MIN_FRAMES:
         outcome.excluded = f"only {common} common frames; the suite needs at least {suite.MIN_FRAMES}"
     else:
-        outcome.metrics = suite.clip_metrics(pred, gt, partner, seed=job.seed)
+        try:
+            outcome.metrics = suite.clip_metrics(pred, gt, partner, seed=job.seed)
+        except ValueError as exc:  # e.g. a Fréchet distance with a large imaginary part (reference: crash)
+            outcome.excluded = f"could not be scored: {exc}"
     return outcome
 
 
