@@ -129,6 +129,19 @@ def test_generate_block_warms_up_on_known_frames_then_feeds_back_its_outputs(nam
         assert torch.allclose(gen(audio, fed, style)[:, w:], block, atol=1e-5)
 
 
+def test_sampled_decoding_feeds_back_the_drawn_frames():
+    gen = _generator()
+    audio, motion, style = _inputs()
+    w = gen.cfg.warmup
+    with torch.no_grad():
+        block = gen.generate_block(audio, motion[:, :w + 1], style, draw=lambda mean: mean + 1.0)
+        assert torch.allclose(block[:, 0], gen(audio, motion, style)[:, w] + 1.0, atol=1e-6)
+        fed = torch.cat([motion[:, :w + 1], block[:, :-1]], dim=1)
+        assert torch.allclose(gen(audio, fed, style)[:, w:] + 1.0, block, atol=1e-5)
+        # teacher forcing ignores the draw
+        assert torch.equal(gen(audio, motion, style, draw=lambda mean: mean + 1.0), gen(audio, motion, style))
+
+
 def test_base_variant_has_no_style_input_and_style_variants_require_one():
     base = _generator("tiny-base")
     assert base.core.lstm.input_size == 2 * base.cfg.d

@@ -100,6 +100,11 @@ class GeneratorConfig:
     normalisation: str = "zscore-train"  # D4
     angle_limit_deg: float = 40.0  # D3: frames with any |angle| above are dropped by the adapter
     seed_window: str = "gt"  # D28: M ground-truth frames seed generation; "mpgw-sim" = D30
+    # decoding (extension beyond the paper, X1): "mean" emits the regression output (the paper's
+    # deterministic model); "sample" adds to each free-running output a residual vector drawn from the
+    # teacher-forced validation residuals (residual bootstrap), seeded per stream
+    decoding: str = "mean"
+    sample_temperature: float = 1.0
     mpgw_bias_sd_deg: float = 4.0  # D30
     mpgw_noise_sd_deg: float = 2.0
     seed: int = 0
@@ -129,6 +134,8 @@ class GeneratorConfig:
             raise ConfigError(f"{self.name}: style_input must be motion-window or preceding")
         if self.loss_outputs not in ("all", "last-n"):
             raise ConfigError(f"{self.name}: loss_outputs must be all or last-n")
+        if self.decoding not in ("mean", "sample"):
+            raise ConfigError(f"{self.name}: decoding must be mean or sample")
         if self.seed_window not in ("gt", "mpgw-sim"):
             raise ConfigError(f"{self.name}: seed_window must be gt or mpgw-sim")
         if sorted(self.concat_order) != ["audio", "motion", "style"]:

@@ -25,6 +25,7 @@ class StyleEvaluator:
     """Callable style encoder with ``digest``, ``window`` (M) and ``hop`` (N, D39) for the gaze suite."""
 
     model: StyleModel
+    path: Path
     digest: str
     version: str
     window: int
@@ -40,4 +41,4 @@ def load_style_evaluator(path: str | Path | None = None, hop: int = 25) -> Style
     model, _ = load_style_model(path)
     digest = file_digest(path)
     version = EVALUATOR_VERSION if path == SHIPPED_STYLE_ENCODER else f"{model.cfg.name}@{digest[:12]}"
-    return StyleEvaluator(model, digest, version, model.cfg.window, hop)
+    return StyleEvaluator(model, path, digest, version, model.cfg.window, hop)

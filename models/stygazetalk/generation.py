@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from dyadbench.seeding import rng
+from dyadbench.seeding import derive_seed, rng
 from models.stygazetalk.audio import window_audio
 from models.stygazetalk.system import StyGazeTalkSystem
 
@@ -37,8 +37,13 @@ def mpgw_seed(seed_deg: np.ndarray, bias_sd: float, noise_sd: float, *parts: obj
     return out
 
 
+def decoding_rng(stream_seed: int) -> torch.Generator:
+    """The per-stream generator of sampled decoding (X1), seeded from the protocol's stream seed."""
+    return torch.Generator().manual_seed(derive_seed("stygazetalk-decoding", stream_seed))
+
+
 def generate_session(system: StyGazeTalkSystem, audio: np.ndarray, seed_deg: np.ndarray, n_frames: int,
-                     style: torch.Tensor | None = None) -> np.ndarray:
+                     style: torch.Tensor | None = None, stream_seed: int = 0) -> np.ndarray:
     """Motion (n_frames, 7) in degrees: the M seed frames, then N-frame blocks until n_frames.
 
     ``audio`` is the session's speech; a last partial block reads zero-padded audio past its end and
@@ -47,11 +52,12 @@ def generate_session(system: StyGazeTalkSystem, audio: np.ndarray, seed_deg: np.
     m, n, w = system.cfg.window, system.cfg.horizon, system.cfg.warmup
     if seed_deg.shape[0] < m:
         raise ValueError(f"the seed window needs M={m} frames, got {seed_deg.shape[0]}")
+    draws = decoding_rng(stream_seed)
     track = [np.asarray(seed_deg[:m], dtype=np.float32)]
     t = m
     while t < n_frames:
         recent = np.concatenate(track[-(m // n + 2):])[-m:]
-        block = system.next_block(window_audio(audio, t - w, m), recent, style)
+        block = system.next_block(window_audio(audio, t - w, m), recent, style, draws)
         take = min(n, n_frames - t)
         track.append(block[:take])
         t += take

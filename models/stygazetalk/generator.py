@@ -9,6 +9,8 @@ rollout training, D9). Every window starts from the learned (h0, c0) [P §3.2].
 
 from __future__ import annotations
 
+from typing import Callable
+
 import torch
 from torch import nn
 
@@ -83,11 +85,14 @@ class MotionGenerator(nn.Module):
         return motion_in + y if self.cfg.residual_output else y
 
     def forward(self, audio: torch.Tensor, motion_in: torch.Tensor, style: torch.Tensor | None = None,
-                free_from: int | None = None) -> torch.Tensor:
+                free_from: int | None = None, draw: Callable[[torch.Tensor], torch.Tensor] | None = None
+                ) -> torch.Tensor:
         """Outputs (B, M, 7) for audio (B, M, F) and motion inputs (B, ≥free_from, 7).
 
         Steps ``< free_from`` read ``motion_in`` (teacher forcing / known frames); later steps read the
-        previous step's output. ``free_from=None`` teacher-forces all M steps.
+        previous step's output. ``free_from=None`` teacher-forces all M steps. ``draw`` (sampled
+        decoding) maps each free-running output — from step ``free_from − 1`` on — to the frame that
+        is emitted and fed back.
         """
         steps = audio.shape[1]
         known = steps if free_from is None else free_from
@@ -96,14 +101,17 @@ class MotionGenerator(nn.Module):
         state = self.core.initial_state(audio.shape[0])
         hidden, state = self.core(self.fuse(audio[:, :known], motion_in[:, :known], style), state)
         outputs = [self._emit(hidden, motion_in[:, :known])]
-        prev = outputs[0][:, -1:]
+        draw = draw if free_from is not None and draw is not None else (lambda frame: frame)
+        prev = draw(outputs[0][:, -1:])
+        outputs = [outputs[0][:, :-1], prev]
         for i in range(known, steps):
             hidden, state = self.core(self.fuse(audio[:, i:i + 1], prev, style), state)
-            prev = self._emit(hidden, prev)
+            prev = draw(self._emit(hidden, prev))
             outputs.append(prev)
         return torch.cat(outputs, dim=1)
 
-    def generate_block(self, audio: torch.Tensor, known: torch.Tensor, style: torch.Tensor | None) -> torch.Tensor:
+    def generate_block(self, audio: torch.Tensor, known: torch.Tensor, style: torch.Tensor | None,
+                       draw: Callable[[torch.Tensor], torch.Tensor] | None = None) -> torch.Tensor:
         """N new frames (B, N, 7) of one inference window (D5).
 
         ``audio`` (B, M, F) covers frames u..u+M−1 with u = t − W; ``known`` (B, W+1, 7) holds the known
@@ -112,4 +120,4 @@ class MotionGenerator(nn.Module):
         warmup = self.cfg.warmup
         if known.shape[1] != warmup + 1:
             raise ValueError(f"generate_block needs W+1={warmup + 1} known frames, got {known.shape[1]}")
-        return self.forward(audio, known, style, free_from=warmup + 1)[:, warmup:]
+        return self.forward(audio, known, style, free_from=warmup + 1, draw=draw)[:, warmup:]

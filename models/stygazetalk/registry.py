@@ -1,6 +1,9 @@
 """``build_stygazetalk``: the registered factory of the ``stygazetalk`` model (gaze7 layout, streaming).
 
 - Weights: ``options.weights`` (a stage-2 checkpoint) or the shipped tiny SE-64 checkpoint.
+- ``options.extra["seed_window"]``: ``"gt"`` or ``"mpgw-sim"`` overrides the checkpoint's seed (D30).
+- ``options.extra["decoding"]``: ``"mean"`` (the paper's deterministic model) or ``"sample"`` (X1)
+  overrides the checkpoint's decoding.
 - Style transfer: ``options.extra["style_from"]`` — a reference session's motion (T, 7) in degrees,
   or the path of a gaze-layout session ``.npz`` (key ``motion``). Its style vector (mean SE embedding
   over its windows) replaces SE(last M frames) in every window.
@@ -8,11 +11,13 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from dyadbench.errors import InputError
+from dyadbench.datasets.gaze import keep_mask, read_session
+from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
 from models.stygazetalk.checkpoints import SHIPPED_MODEL, load_system
 from models.stygazetalk.stream import StyGazeTalkStream
@@ -23,6 +28,14 @@ VERSION = "1"
 def build_stygazetalk(options: ModelOptions) -> StyGazeTalkStream:
     path = Path(options.weights) if options.weights is not None else SHIPPED_MODEL
     system, meta = load_system(path)
+    seed_window = options.extra.get("seed_window")
+    if seed_window is not None:  # e.g. "mpgw-sim": the SE-64 weights with a corrupted seed (D30)
+        if seed_window not in ("gt", "mpgw-sim"):
+            raise ConfigError(f"seed_window must be gt or mpgw-sim, got {seed_window!r}")
+        system.cfg = replace(system.cfg, seed_window=seed_window)
+    decoding = options.extra.get("decoding")
+    if decoding is not None:  # "sample": the extension X1 with the same weights
+        system.cfg = replace(system.cfg, decoding=decoding).validate()
     style_from = options.extra.get("style_from")
     style, style_desc = None, None
     if style_from is not None:
@@ -42,16 +55,15 @@ def build_stygazetalk(options: ModelOptions) -> StyGazeTalkStream:
 
 
 def _reference_motion(style_from: object) -> tuple[np.ndarray, str]:
+    """(T, 7) degrees of a style reference: an array, or a gaze-layout session file (kept frames only)."""
     if isinstance(style_from, np.ndarray):
         motion, desc = style_from, f"array of {style_from.shape[0]} frames"
     else:
         path = Path(str(style_from))
         if not path.is_file():
-            raise InputError(path, "style reference session not found (give a gaze-layout .npz)")
-        with np.load(path, allow_pickle=False) as data:
-            if "motion" not in data:
-                raise InputError(path, "style reference has no 'motion' array")
-            motion, desc = data["motion"], str(path)
+            raise InputError(path, "style reference session not found (give a gaze-layout <session>.npz)")
+        session = read_session(path)
+        motion, desc = session.motion[keep_mask(session)], str(path)
     motion = np.asarray(motion, dtype=np.float32)
     if motion.ndim != 2 or motion.shape[1] != 7 or not np.isfinite(motion).all():
         raise InputError(desc, f"style reference motion must be finite (T, 7) degrees, got {motion.shape}")

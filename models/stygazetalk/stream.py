@@ -13,6 +13,8 @@
   (zero-padded when the context holds fewer than ⌈W/F⌉ history turns); the motion inputs and the
   style window are the model's own most recent frames (seed, then its earlier outputs), which it keeps
   itself, whatever the protocol's history-agent policy.
+- With sampled decoding (X1, an extension) the frames are drawn from a generator seeded by the
+  protocol's per-stream seed, so a run is reproducible and causal.
 """
 
 from __future__ import annotations
@@ -24,7 +26,7 @@ from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, SAMPLE_RATE
 from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
 from models.stygazetalk.audio import HOP
-from models.stygazetalk.generation import mpgw_seed
+from models.stygazetalk.generation import decoding_rng, mpgw_seed
 from models.stygazetalk.system import StyGazeTalkSystem
 
 
@@ -34,6 +36,7 @@ class StyGazeTalkStream(StreamingModel):
         self.system, self.info, self.style, self.run_seed = system.eval(), info, style, run_seed
         self._track = np.zeros((0, 7), np.float32)
         self._ctx: StreamContext | None = None
+        self._rng = decoding_rng(0)
 
     def start_stream(self, ctx: StreamContext) -> None:
         if ctx.fps != FPS or ctx.sample_rate != SAMPLE_RATE:
@@ -43,6 +46,7 @@ class StyGazeTalkStream(StreamingModel):
             raise ConfigError(f"the turn length ({ctx.frames_per_turn} frames) must divide the seed window "
                               f"M = {self.system.cfg.window}")
         self._ctx = ctx
+        self._rng = decoding_rng(ctx.seed)
         self._track = np.zeros((ctx.num_turns * ctx.frames_per_turn, 7), np.float32)
 
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
@@ -56,7 +60,7 @@ class StyGazeTalkStream(StreamingModel):
         while t < hi:
             u = t - cfg.warmup
             wave = _frames_of(turn.agent_audio, u - audio_start, cfg.window)
-            block = self.system.next_block(wave, self._track[t - cfg.window:t], self.style)
+            block = self.system.next_block(wave, self._track[t - cfg.window:t], self.style, self._rng)
             take = min(cfg.horizon, hi - t)
             self._track[t:t + take] = block[:take]
             t += take

@@ -17,6 +17,8 @@ from models.stygazetalk.generator import MotionGenerator
 from models.stygazetalk.normalise import ZScore
 from models.stygazetalk.style_encoder import StyleEncoder
 
+RESIDUAL_POOL = 4096  # residual vectors kept for sampled decoding
+
 
 class StyGazeTalkSystem(nn.Module):
     def __init__(self, cfg: GeneratorConfig, se_cfg: StyleEncoderConfig | None):
@@ -28,6 +30,9 @@ class StyGazeTalkSystem(nn.Module):
         self.audio_norm = ZScore(feature_dim(cfg))
         self.style_encoder = StyleEncoder(se_cfg) if cfg.style else None
         self.generator = MotionGenerator(cfg, feature_dim(cfg))
+        # teacher-forced validation residuals (target − output, normalised units) for sampled decoding
+        # (X1); fitted after training
+        self.register_buffer("residual_pool", torch.zeros(RESIDUAL_POOL, MOTION_DIM))
         if self.style_encoder is not None and cfg.freeze_style_encoder:
             self.style_encoder.requires_grad_(False)
 
@@ -47,14 +52,31 @@ class StyGazeTalkSystem(nn.Module):
             return None
         return self.style_encoder(window)
 
+    def drawer(self, rng: torch.Generator | None):
+        """Sampled decoding (X1): output + a residual vector drawn uniformly from the validation pool
+        (a residual bootstrap: heavy tails and cross-dim correlation kept). None for mean decoding."""
+        if self.cfg.decoding == "mean":
+            return None
+        if rng is None:
+            raise ValueError(f"{self.cfg.name} samples its frames: pass a seeded torch.Generator")
+        pool = self.residual_pool * self.cfg.sample_temperature
+
+        def draw(mean: torch.Tensor) -> torch.Tensor:
+            idx = torch.randint(pool.shape[0], mean.shape[:-1], generator=rng)
+            return mean + pool[idx]
+
+        return draw
+
     @torch.no_grad()
-    def next_block(self, waveform: np.ndarray, recent: np.ndarray, style: torch.Tensor | None = None) -> np.ndarray:
+    def next_block(self, waveform: np.ndarray, recent: np.ndarray, style: torch.Tensor | None = None,
+                   rng: torch.Generator | None = None) -> np.ndarray:
         """The N frames (N, 7) in degrees following ``recent``.
 
         - ``waveform``: the speech of frames u..u+M−1 (M·640 samples), u = t − W, t the first new frame.
         - ``recent``: the most recent known frames x_{..t−1} in degrees, at least M of them (seed or
           earlier outputs); the last W+1 are the warm-up motion inputs, the last M the style window.
         - ``style``: a fixed style vector (style transfer) instead of SE(last M frames).
+        - ``rng``: the stream's generator for sampled decoding (X1); unused with mean decoding.
         """
         cfg = self.cfg
         if recent.shape[0] < cfg.window or waveform.shape[0] != cfg.window * HOP:
@@ -63,7 +85,7 @@ class StyGazeTalkSystem(nn.Module):
         known = torch.from_numpy(self.motion_norm.np(recent[-cfg.window:]))[None]
         audio = torch.from_numpy(self.audio_window(waveform))[None]
         s = style if style is not None else self.style(known)
-        block = self.generator.generate_block(audio, known[:, -(cfg.warmup + 1):], s)
+        block = self.generator.generate_block(audio, known[:, -(cfg.warmup + 1):], s, self.drawer(rng))
         return self.motion_norm.np_inverse(block[0].numpy())
 
     @torch.no_grad()

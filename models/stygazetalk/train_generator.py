@@ -81,6 +81,25 @@ def fit_audio_norm(system: StyGazeTalkSystem, train: list[Segment]) -> None:
     system.audio_norm.load_state_dict(ZScore.fit(rows).state_dict())
 
 
+@torch.no_grad()
+def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size: int) -> torch.Tensor:
+    """``size`` teacher-forced residual vectors (target − output) drawn without replacement from ``bank``
+    (seeded by the config seed), the pool of sampled decoding (X1)."""
+    system.eval()
+    residuals = []
+    for lo in range(0, len(bank), batch):
+        window = torch.from_numpy(bank.motion[lo:lo + batch, -(system.cfg.window + 1):])
+        x_in, target = window[:, :-1], window[:, 1:]
+        style = system.style(x_in if system.cfg.style_input == "motion-window"
+                             else torch.from_numpy(bank.motion[lo:lo + batch, :system.cfg.window]))
+        pred = system.generator(torch.from_numpy(bank.audio[lo:lo + batch]), x_in, style)
+        residuals.append((target - pred).reshape(-1, target.shape[-1]))
+    r = torch.cat(residuals)
+    pick = np.random.default_rng(derive_seed("stygazetalk-residuals", system.cfg.seed)).choice(
+        len(r), size=size, replace=len(r) < size)
+    return r[torch.from_numpy(pick)]
+
+
 def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
     system.eval()
     total, n = 0.0, 0
@@ -129,6 +148,7 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
                 log.best_val, log.best_step = val, step
                 best_state = {k: v.clone() for k, v in system.state_dict().items()}
     system.load_state_dict(best_state)
+    system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
     system.eval()
     log.seconds = time.perf_counter() - start
     return log
