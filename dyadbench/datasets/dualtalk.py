@@ -120,7 +120,7 @@ class DualTalkSource(ClipSource):
         return None
 
     def extra_meta(self, clip_id: str) -> dict:
-        """Dataset-specific additions to a clip's ``meta``."""
+        """Dataset-specific additions to a clip's ``meta`` (a ``speaking`` entry replaces the VAD's)."""
         return {}
 
     def load(self, clip_id: str) -> DyadicClip:
@@ -136,9 +136,10 @@ class DualTalkSource(ClipSource):
             wav = files.path(speaker, "wav")
             audio = fit_audio(read_wav(wav, sample_rate=SAMPLE_RATE), len(motion), wav)
             participants.append(Participant(speaker, motion, audio, self.identity(clip_id, speaker)))
-        meta = {"speaking": {p.name: energy_vad(p.audio, SAMPLE_RATE, FPS) for p in participants},
-                "speaking_source": "energy-vad", "folder": str(self.root)}
-        meta.update(self.extra_meta(clip_id))
+        meta = {"folder": str(self.root), **self.extra_meta(clip_id)}
+        if "speaking" not in meta:
+            meta["speaking"] = {p.name: energy_vad(p.audio, SAMPLE_RATE, FPS) for p in participants}
+            meta["speaking_source"] = "energy-vad"
         return DyadicClip(clip_id, tuple(participants), fps=FPS, sample_rate=SAMPLE_RATE, layout="flame56",
                           meta=meta)
 
