@@ -19,14 +19,14 @@ PNG = b"\x89PNG\r\n\x1a\n"
 def test_trajectories_and_context_curves_from_an_eval(tmp_path):
     data = tmp_path / "dt"
     for split in ("train", "test"):
-        write_dualtalk_split(data, split=split, clips=2, seed=0, progress=False)
+        write_dualtalk_split(data, split=split, clips=1, seed=0, progress=False)
     runner = CliRunner()
     for n in (0, 3):
         result = runner.invoke(cli, ["eval", "--model", "lagged-mirror", "--data", str(data), "--context", str(n),
                                      "--out", str(tmp_path / f"n{n}")], catch_exceptions=False)
         assert result.exit_code == 0, result.output
     result = runner.invoke(cli, ["plot", "trajectories", str(tmp_path / "n0" / "predictions"), "--clip",
-                                 "synth_test_00001", "--agent", "speaker2", "--data", str(data),
+                                 "synth_test_00000", "--agent", "speaker2", "--data", str(data),
                                  "--dims", "exp:0,jaw:0,pose:2", "--out", str(tmp_path / "t.png")],
                            catch_exceptions=False)
     assert result.exit_code == 0, result.output
