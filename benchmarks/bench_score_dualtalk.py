@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import os
 import platform
+import resource
 import sys
 import time
 from pathlib import Path
@@ -138,10 +139,17 @@ def reference_score(items: list[ScoreItem], seed: int) -> list[dict[str, float]]
 
 # --- the run -----------------------------------------------------------------------------------------
 
+def _cpu_seconds() -> float:
+    """CPU time of this process and of its finished worker processes (all threads)."""
+    children = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return time.process_time() + children.ru_utime + children.ru_stime
+
+
 def _timed(fn):
-    start = time.perf_counter()
+    """(result, wall seconds, CPU seconds)."""
+    start, cpu = time.perf_counter(), _cpu_seconds()
     result = fn()
-    return result, time.perf_counter() - start
+    return result, time.perf_counter() - start, _cpu_seconds() - cpu
 
 
 def _max_abs_diff(rows_a: list[dict], rows_b: list[dict]) -> dict[str, float]:
@@ -161,21 +169,23 @@ def main(agents: int, reference_agents: int, seed: int) -> None:
     print(f"# DualTalk-suite scoring: {agents} agents, mean {frames:.0f} frames; {os.cpu_count()} CPUs; "
           f"load average before: {os.getloadavg()[0]:.2f}; python {platform.python_version()}")
 
-    ref_rows, t_ref = _timed(lambda: reference_score(ref_items, seed))
+    ref_rows, t_ref, cpu_ref = _timed(lambda: reference_score(ref_items, seed))
     with threadpool_limits(limits=1):
-        ref_rows_1, t_ref_1 = _timed(lambda: reference_score(ref_items, seed))
-    report_1, t_jobs1 = _timed(lambda: score_arrays(items, jobs=1, seed=seed))
-    report_2, t_jobs2 = _timed(lambda: score_arrays(items, jobs=2, seed=seed))
+        ref_rows_1, t_ref_1, cpu_ref_1 = _timed(lambda: reference_score(ref_items, seed))
+    report_1, t_jobs1, cpu_jobs1 = _timed(lambda: score_arrays(items, jobs=1, seed=seed))
+    report_2, t_jobs2, cpu_jobs2 = _timed(lambda: score_arrays(items, jobs=2, seed=seed))
     print(f"# load average after: {os.getloadavg()[0]:.2f}")
 
     base = len(ref_items) / t_ref
-    rows = [("reference, default threads", len(ref_items), t_ref),
-            ("reference, 1 BLAS/OpenMP thread", len(ref_items), t_ref_1),
-            ("dyadbench score_arrays --jobs 1", agents, t_jobs1),
-            ("dyadbench score_arrays --jobs 2", agents, t_jobs2)]
-    print(f"\n| implementation | agents | seconds | clips/s | vs reference |\n|---|---:|---:|---:|---:|")
-    for name, n, seconds in rows:
-        print(f"| {name} | {n} | {seconds:.1f} | {n / seconds:.1f} | {n / seconds / base:.2f}x |")
+    rows = [("reference, default threads", len(ref_items), t_ref, cpu_ref),
+            ("reference, 1 BLAS/OpenMP thread", len(ref_items), t_ref_1, cpu_ref_1),
+            ("dyadbench score_arrays --jobs 1", agents, t_jobs1, cpu_jobs1),
+            ("dyadbench score_arrays --jobs 2", agents, t_jobs2, cpu_jobs2)]
+    print("\n| implementation | agents | seconds | clips/s | vs reference | CPU ms/clip |\n"
+          "|---|---:|---:|---:|---:|---:|")
+    for name, n, seconds, cpu in rows:
+        print(f"| {name} | {n} | {seconds:.1f} | {n / seconds:.1f} | {n / seconds / base:.2f}x | "
+              f"{1e3 * cpu / n:.0f} |")
     print(f"\nfull set ({agents} agents) with --jobs 2: {t_jobs2:.1f} s; --jobs 2 / --jobs 1 = "
           f"{t_jobs1 / t_jobs2:.2f}x")
 
