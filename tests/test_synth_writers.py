@@ -62,6 +62,16 @@ def test_default_corpus_round_trips_generator_annotations(small_corpus):
     assert [tuple(t) for t in original.meta["turns"]] == clip.meta["turns"]
 
 
+def test_split_from_other_generator_code_is_regenerated(small_corpus, capsys):
+    source = synthetic.open_split(None, "val")
+    marker_path = source.root / writers.MARKER
+    marker_path.write_text(marker_path.read_text().replace(writers.generator_digest(), "older-code"))
+    capsys.readouterr()
+    synthetic.open_split(None, "val")
+    assert "made by other generator code" in capsys.readouterr().err
+    assert writers.generator_digest() in marker_path.read_text()
+
+
 def test_stale_or_partial_split_is_regenerated(small_corpus):
     folder = synthetic.corpus_root() / "val"
     folder.mkdir(parents=True)

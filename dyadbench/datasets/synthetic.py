@@ -2,9 +2,10 @@
 
 ``open_split(None, split)`` uses ``<cache>/synthetic-v<generator version>/<split>/`` (the cache is
 ``$DYADBENCH_CACHE`` or the user's cache directory, :func:`dyadbench.paths.cache_dir`). When that folder
-lacks its ``synthetic.json`` marker, the split is generated (:mod:`dyadbench.synth`, seed
-``DEFAULT_SEED``) into a temporary sibling folder which is then renamed into place, so a split folder is
-either complete or absent. A message on stderr says when it generates and which folder is used.
+lacks its ``synthetic.json`` marker, or the marker names another generator version, source digest
+(:func:`dyadbench.synth.writers.generator_digest`), seed or size, the split is (re)generated
+(:mod:`dyadbench.synth`, seed ``DEFAULT_SEED``) into a temporary sibling folder which is then renamed
+into place, so a split folder is never half-written. A message on stderr says when it generates and which folder is used.
 ``root`` may name another folder to hold the splits (for example a shared disk).
 
 Splits and sizes: test 533 and ood 377 dialogues (DualTalk's counts), train 800 (about 7 hours, enough
@@ -28,7 +29,7 @@ from dyadbench.features.activity import segments_mask
 from dyadbench.motion import FPS
 from dyadbench.paths import cache_dir
 from dyadbench.synth.styles import GENERATOR_VERSION
-from dyadbench.synth.writers import MARKER, default_size, write_dualtalk_split
+from dyadbench.synth.writers import MARKER, default_size, generator_digest, write_dualtalk_split
 
 DEFAULT_SEED = 0
 
@@ -44,15 +45,18 @@ def _read_marker(folder: Path, split: str) -> dict | None:
         marker = json.loads((folder / MARKER).read_text())
     except (OSError, ValueError):
         return None
-    expected = {"version": GENERATOR_VERSION, "seed": DEFAULT_SEED, "split": split, "clips": default_size(split)}
+    expected = {"version": GENERATOR_VERSION, "generator_digest": generator_digest(), "seed": DEFAULT_SEED,
+                "split": split, "clips": default_size(split)}
     return marker if all(marker.get(k) == v for k, v in expected.items()) else None
 
 
 def _generate(base: Path, split: str) -> None:
     base.mkdir(parents=True, exist_ok=True)
     jobs = max(1, min(4, os.cpu_count() or 1))
+    why = ("the cached copy was made by other generator code" if (base / split / MARKER).exists()
+           else "first use only")
     print(f"dyadbench: generating the synthetic {split} split ({default_size(split)} dialogues, seed "
-          f"{DEFAULT_SEED}) into {base / split} (first use only)", file=sys.stderr)
+          f"{DEFAULT_SEED}) into {base / split} ({why})", file=sys.stderr)
     tmp = Path(tempfile.mkdtemp(prefix=f".{split}-", dir=base))
     try:
         write_dualtalk_split(tmp, split=split, seed=DEFAULT_SEED, jobs=jobs)

@@ -8,7 +8,7 @@
   own order (float32, via :func:`dyadbench.datasets.dualtalk_files.write_gt_npz`), plus ``shape`` (T,100),
   ``tex`` (T,50), ``cam`` (T,3), ``light`` (T,9,3) like the release: a per-person constant plus small
   per-frame tracker jitter (the benchmark ignores them);
-- ``synthetic.json``: generator name, version, seed, split and per clip the identities, turns and speech
+- ``synthetic.json``: generator name, version, source digest, seed, split and per clip the identities, turns and speech
   segments (what the DualTalk files cannot hold). Written last: its presence marks a complete split.
 
 Clip ``i`` depends only on (seed, split, i), so the files do not depend on ``jobs``.
@@ -16,7 +16,9 @@ Clip ``i`` depends only on (seed, split, i), so the files do not depend on ``job
 
 from __future__ import annotations
 
+import hashlib
 from concurrent.futures import ProcessPoolExecutor
+from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -34,6 +36,22 @@ from dyadbench.synth.styles import GENERATOR_VERSION, split_pool
 MARKER = "synthetic.json"
 # default sizes: DualTalk's test and ood splits; train sized to generate in about a minute
 SPLIT_SIZES = {"train": 800, "test": 533, "ood": 377, "val": 100}
+
+
+# the modules whose code determines the written bytes (their digest is recorded in synthetic.json)
+GENERATOR_MODULES = ("synth/signals.py", "synth/styles.py", "synth/timeline.py", "synth/speech.py",
+                     "synth/behaviour.py", "synth/corpus.py", "synth/writers.py", "datasets/wav.py",
+                     "datasets/dualtalk_files.py", "features/activity.py", "motion.py", "seeding.py")
+
+
+@lru_cache(maxsize=1)
+def generator_digest() -> str:
+    """sha256 of the generator's source files: a cached corpus made by other code is not reused."""
+    root = Path(__file__).resolve().parents[1]
+    h = hashlib.sha256()
+    for name in GENERATOR_MODULES:
+        h.update(name.encode() + b"\0" + (root / name).read_bytes())
+    return h.hexdigest()
 
 
 def default_size(split: str) -> int:
@@ -101,7 +119,7 @@ def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | N
     records = dict(sorted(results))
     frames = sum(r["frames"] for r in records.values())
     summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
-               "seed": seed, "split": split, "style_pool": split_pool(split), "clips": n,
+               "generator_digest": generator_digest(), "seed": seed, "split": split, "style_pool": split_pool(split), "clips": n,
                "hours": frames / 25.0 / 3600.0, "records": records}
     atomic.write_json(folder / MARKER, summary)
     return {**{k: v for k, v in summary.items() if k != "records"}, "folder": str(folder)}
