@@ -42,7 +42,8 @@ def pcm16_to_float(samples: np.ndarray) -> np.ndarray:
 
 def float_to_pcm16(audio: np.ndarray) -> np.ndarray:
     """float -> int16 round(x * 32768), clipped to [-32768, 32767] (exact in float32: x * 2^15 is exact)."""
-    scaled = np.rint(np.asarray(audio, dtype=np.float32) * np.float32(PCM16_SCALE))
+    scaled = np.multiply(np.asarray(audio, dtype=np.float32), np.float32(PCM16_SCALE))
+    np.rint(scaled, out=scaled)
     np.clip(scaled, -32768, 32767, out=scaled)
     return scaled.astype(np.int16)
 
