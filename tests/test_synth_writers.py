@@ -8,6 +8,7 @@ import pytest
 
 from dyadbench.datasets import synthetic
 from dyadbench.datasets.dualtalk import validate_folder
+from dyadbench.errors import InputError
 from dyadbench.synth import writers
 from dyadbench.synth.corpus import make_clip
 
@@ -72,9 +73,12 @@ def test_split_from_other_generator_code_is_regenerated(small_corpus, capsys):
     assert writers.generator_digest() in marker_path.read_text()
 
 
-def test_stale_or_partial_split_is_regenerated(small_corpus):
+def test_a_folder_not_written_by_the_generator_is_never_replaced(small_corpus):
     folder = synthetic.corpus_root() / "val"
     folder.mkdir(parents=True)
-    (folder / "junk_speaker1.wav").write_bytes(b"partial")
-    source = synthetic.open_split(None, "val")
-    assert len(source) == 2 and not (folder / "junk_speaker1.wav").exists()
+    (folder / "real_clip_speaker1.wav").write_bytes(b"someone's data")
+    with pytest.raises(InputError, match="refusing to overwrite"):
+        synthetic.open_split(None, "val")
+    assert (folder / "real_clip_speaker1.wav").read_bytes() == b"someone's data"
+    folder.joinpath("real_clip_speaker1.wav").unlink()
+    assert len(synthetic.open_split(None, "val")) == 2  # an empty folder is filled

@@ -50,19 +50,30 @@ def _read_marker(folder: Path, split: str) -> dict | None:
     return marker if all(marker.get(k) == v for k, v in expected.items()) else None
 
 
+def _is_generated(folder: Path) -> bool:
+    """True when ``folder`` holds a split this generator wrote (any version): safe to replace."""
+    try:
+        return json.loads((folder / MARKER).read_text()).get("generator") == "dyadbench.synth"
+    except (OSError, ValueError, AttributeError):
+        return False
+
+
 def _generate(base: Path, split: str) -> None:
+    target = base / split
+    stale = _is_generated(target)
+    if target.exists() and not stale and any(target.iterdir()):
+        raise InputError(target, f"exists but holds no {MARKER} from the synthetic generator; refusing to "
+                                 "overwrite it (pass an empty or new folder, or use --dataset dualtalk to read it)")
     base.mkdir(parents=True, exist_ok=True)
     jobs = max(1, min(4, os.cpu_count() or 1))
-    why = ("the cached copy was made by other generator code" if (base / split / MARKER).exists()
-           else "first use only")
+    why = "the cached copy was made by other generator code" if stale else "first use only"
     print(f"dyadbench: generating the synthetic {split} split ({default_size(split)} dialogues, seed "
           f"{DEFAULT_SEED}) into {base / split} ({why})", file=sys.stderr)
     tmp = Path(tempfile.mkdtemp(prefix=f".{split}-", dir=base))
     try:
         write_dualtalk_split(tmp, split=split, seed=DEFAULT_SEED, jobs=jobs)
-        target = base / split
         if target.exists() and _read_marker(target, split) is None:
-            shutil.rmtree(target)  # stale or from another generator version
+            shutil.rmtree(target)  # empty, or written by other generator code (checked above)
         try:
             os.rename(tmp / split, target)
         except OSError:
