@@ -33,6 +33,8 @@ def _overrides(base, **values):
 @click.option("--val-split", default="val", show_default=True,
               help="Split for early-stopping selection (validation NT-Xent) and the retrieval check.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
+@click.option("--batch", type=click.IntRange(min=2), default=None,
+              help="Override the preset's pairs per batch (anchors of one session stay >= 10 s apart).")
 @click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
@@ -40,7 +42,8 @@ def _overrides(base, **values):
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Checkpoint file to write (atomically).")
 def train_style_encoder(config_name: str, dataset: str, root: Path | None, train_split: str, val_split: str,
-                        steps: int | None, seed: int | None, val_every: int, threads: int, out: Path) -> None:
+                        steps: int | None, batch: int | None, seed: int | None, val_every: int, threads: int,
+                        out: Path) -> None:
     """Stage 1: train the contrastive (NT-Xent) style encoder on adjacent windows of one speaker.
 
     Prints the validation NT-Xent curve and the top-1 same-speaker retrieval accuracy of the selected
@@ -54,7 +57,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     from models.stygazetalk.train_style import retrieval_accuracy, tiled_windows, train_style_encoder as fit
 
     torch.set_num_threads(threads)
-    cfg = _overrides(get_style_config(config_name), steps=steps, seed=seed)
+    cfg = _overrides(get_style_config(config_name), steps=steps, batch_pairs=batch, seed=seed)
     min_frames = 2 * cfg.window + cfg.pair_gap_max
     train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
     train = load_segments(train_src, cfg.angle_limit_deg, min_frames)
@@ -85,6 +88,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--val-split", default="val", show_default=True,
               help="Split for checkpoint selection (teacher-forced validation loss).")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
+@click.option("--batch", type=click.IntRange(min=1), default=None, help="Override the preset's batch size.")
 @click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
               help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
 @click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
@@ -92,8 +96,8 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Checkpoint file to write (atomically).")
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
-                    val_split: str, steps: int | None, lam: float | None, seed: int | None, threads: int,
-                    out: Path) -> None:
+                    val_split: str, steps: int | None, batch: int | None, lam: float | None, seed: int | None,
+                    threads: int, out: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The selected weights are those with the lowest teacher-forced validation loss.
@@ -107,7 +111,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.train_generator import train_generator as fit
 
     torch.set_num_threads(threads)
-    cfg = _overrides(get_generator_config(config_name), steps=steps, lam=lam, seed=seed).validate()
+    cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam, seed=seed).validate()
     style, style_digest = None, None
     if cfg.style:
         if style_path is None:
