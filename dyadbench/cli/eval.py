@@ -79,12 +79,23 @@ def open_splits(data: Path | None, dataset: str, split: str) -> tuple[ClipSource
 
 def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
             cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
-            predictions_dir: Path | None) -> EvalResult:
+            predictions_dir: Path | None, extra: dict | None = None) -> EvalResult:
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
-    options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train)
+    options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
+                           extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
                     predictions_dir=predictions_dir)
+
+
+def style_reference(source: ClipSource, style_from: str) -> str | object:
+    """--style-from: an existing file path as is, else the motion of that session (clip id) of ``source``."""
+    if Path(style_from).is_file():
+        return style_from
+    if style_from not in source.clip_ids():
+        raise ConfigError(f"--style-from {style_from!r} is neither a file nor a session of "
+                          f"{source.dataset}/{source.split}")
+    return source.load(style_from).participants[0].motion
 
 
 def summary(result: EvalResult) -> str:
@@ -120,12 +131,15 @@ def write_per_clip(result: EvalResult, path: Path) -> Path:
               help="History turns n given with the current turn (0 = none; TIMAR's main results use 7).")
 @protocol_options
 @data_options
+@click.option("--style-from", "style_from", default=None,
+              help="Style transfer (gaze-head models with a style encoder, e.g. stygazetalk): a session id of "
+                   "the evaluated split, or a gaze-layout <session>.npz; its style conditions every window.")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder: predictions/<clip>_speakerK.npy, result.json, per_clip.csv "
                    "[default: runs/<model>_<dataset>_<split>_n<context>].")
 def eval_command(model: str, split: str, context: int, turn_seconds: float, tail: str, history_agent: str,
                  seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
-                 clips: int | None, jobs: int, out: Path | None) -> None:
+                 clips: int | None, jobs: int, style_from: str | None, out: Path | None) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
@@ -141,8 +155,9 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     name = resolve_dataset(data, dataset)
     source, train = open_splits(data, name, split)
     out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
+    extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
     result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips, jobs=jobs,
-                     predictions_dir=out / "predictions")
+                     predictions_dir=out / "predictions", extra=extra)
     result_path = result.write(out / "result.json")
     csv_path = write_per_clip(result, out / "per_clip.csv")
     click.echo(summary(result))
