@@ -5,7 +5,8 @@
 lacks its ``synthetic.json`` marker, or the marker names another generator version, source digest
 (:func:`dyadbench.synth.writers.generator_digest`), seed or size, the split is (re)generated
 (:mod:`dyadbench.synth`, seed ``DEFAULT_SEED``) into a temporary sibling folder which is then renamed
-into place, so a split folder is never half-written. A message on stderr says when it generates and which folder is used.
+into place, so a split folder is never half-written. A message on stderr says when it generates and
+which folder is used. A non-empty folder without the generator's marker is never replaced.
 ``root`` may name another folder to hold the splits (for example a shared disk).
 
 Splits and sizes: test 533 and ood 377 dialogues (DualTalk's counts), train 800 (about 7 hours, enough

@@ -80,7 +80,8 @@ def motion(r: np.random.Generator, style: Style, w: World, own: SpeechSignals, o
     speaking_smooth = lowpass(own.speaking.astype(np.float64), 10.0)
     jaw_env = lowpass(delay(own.envelope * (JAW_OPEN_VOWEL - JAW_VOWEL_SLOPE * own.vowel), JAW_LAG), 1.0)
     jaw = np.stack([
-        style.jaw_rest + style.jaw_gain * (jaw_env + JAW_SPEECH_NOISE * speaking_smooth * ou_process(r, n, 3.0, 1.0)[:, 0])
+        style.jaw_rest + style.jaw_gain * (jaw_env + JAW_SPEECH_NOISE * speaking_smooth
+                                            * ou_process(r, n, 3.0, 1.0)[:, 0])
         + ou_process(r, n, 0.5 * fps, 0.006)[:, 0],
         0.25 * style.jaw_gain * jaw_env * (delay(own.vowel, JAW_LAG) - 0.5) + ou_process(r, n, 0.4 * fps, 0.008)[:, 0],
         ou_process(r, n, 0.4 * fps, 0.008)[:, 0],

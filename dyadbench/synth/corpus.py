@@ -46,12 +46,13 @@ per-dim std 0.45, head std 0.021 rad, jaw opening 0.043 +- 0.028 rad; ood is liv
 
 Consequences downstream: own speech predicts jaw, articulation, head prosody and brow raises; the
 partner's speech predicts nods and smiles after its phrase ends; the partner's motion predicts mirrored
-affect (checked by tests/test_synth_learnable.py). On 2 x 20 test clips, MSE exp / jaw / pose (raw) of mean-frame (train mean) is
-0.365 / 4.3e-4 / 1.68e-3; copying the partner (mime) is worse on MSE, 0.467 / 1.0e-3 / 2.4e-3, but has
-realistic variance and diversity (mean-frame has none); the partner lagged by 12 frames (lagged mirror)
-is closer than mime on exp (0.439); a causal ridge regression on own and partner speech features and
-partner expression (60 train clips) reaches 0.262 / 2.2e-4 / 1.64e-3. Idle drift and the identity
-offsets are unpredictable by design, so pose gains are small for any model.
+affect (checked by tests/test_synth_learnable.py). On 2 x 20 test clips, MSE exp / jaw / pose (raw)
+of mean-frame (train mean) is 0.365 / 4.3e-4 / 1.68e-3; copying the partner (mime) is worse on MSE,
+0.467 / 1.0e-3 / 2.4e-3, but has realistic variance and diversity (mean-frame has none); the partner
+lagged by 12 frames (lagged mirror) is closer than mime on exp (0.439); a causal ridge regression on
+own and partner speech features and partner expression (60 train clips) reaches 0.262 / 2.2e-4 /
+1.64e-3. Idle drift and the identity offsets are unpredictable by design, so pose gains are small for
+any model.
 
 Splits: ``train``, ``test`` (and ``val``) draw people from the *seen* style pool; ``ood`` draws from the
 *unseen* pool and uses different turn statistics (shorter turns and phrases, more overlap, more

@@ -7,10 +7,11 @@ Signals live on a fine grid of 400 Hz (16 steps per 25-fps frame, 40 samples at 
   x a pitch accent (+``f0_accent`` sin bump) on emphasised syllables x a slight 4.7 Hz vibrato;
 - vowel openness: per syllable, between an open "a" and a spread "i" timbre.
 
-Audio = near-silence (white Gaussian floor at -60 dBFS, sliced from a fixed table at random offsets) everywhere, plus, inside phrases, ``loudness`` x
-envelope x a harmonic wavetable oscillator following f0 (harmonics with roll-off ``timbre_tilt`` and two
-vowel-dependent formant peaks, cross-faded by vowel openness) and a short noise burst at each syllable
-onset (a 10-ms decaying consonant burst). Samples are quantised to the 16-bit PCM grid so a written wav reads back exactly.
+Audio = near-silence everywhere (white Gaussian floor at -60 dBFS, sliced from a fixed table at random
+offsets), plus, inside phrases, ``loudness`` x envelope x a harmonic wavetable oscillator following f0
+(harmonics with roll-off ``timbre_tilt`` and two vowel-dependent formant peaks, cross-faded by vowel
+openness) and a 10-ms decaying noise burst at each syllable onset (a consonant). Samples are quantised to the 16-bit PCM grid so a written
+wav reads back exactly.
 """
 
 from __future__ import annotations
@@ -146,5 +147,5 @@ def speech_signals(r: np.random.Generator, track: Track, style: Style, n_frames:
     voiced = env > 0
     pitch = block_mean(np.where(voiced, f0 / style.f0_base - 1.0, 0.0), per_frame)
     vowel_frame = block_mean(vowel * env, per_frame) / np.maximum(env_frame, 1e-9)
-    return SpeechSignals(speaking=segments_mask(track.phrases, n_frames, fps), envelope=env_frame, vowel=np.where(env_frame > 0, vowel_frame, 0.0),
-                         pitch=pitch, audio=audio)
+    return SpeechSignals(speaking=segments_mask(track.phrases, n_frames, fps), envelope=env_frame,
+                         vowel=np.where(env_frame > 0, vowel_frame, 0.0), pitch=pitch, audio=audio)

@@ -29,6 +29,7 @@ from dyadbench.datasets.base import DyadicClip
 from dyadbench.datasets.dualtalk_files import write_gt_npz
 from dyadbench.datasets.wav import write_wav
 from dyadbench.errors import ConfigError
+from dyadbench.motion import FPS
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.corpus import make_clip
 from dyadbench.synth.styles import GENERATOR_VERSION, split_pool
@@ -119,7 +120,7 @@ def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | N
     records = dict(sorted(results))
     frames = sum(r["frames"] for r in records.values())
     summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
-               "generator_digest": generator_digest(), "seed": seed, "split": split, "style_pool": split_pool(split), "clips": n,
-               "hours": frames / 25.0 / 3600.0, "records": records}
+               "generator_digest": generator_digest(), "seed": seed, "split": split,
+               "style_pool": split_pool(split), "clips": n, "hours": frames / FPS / 3600.0, "records": records}
     atomic.write_json(folder / MARKER, summary)
     return {**{k: v for k, v in summary.items() if k != "records"}, "folder": str(folder)}
