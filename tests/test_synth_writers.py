@@ -61,6 +61,9 @@ def test_default_corpus_round_trips_generator_annotations(small_corpus):
         assert np.array_equal(p.motion, q.motion) and np.array_equal(p.audio, q.audio)
         assert np.array_equal(original.meta["speaking"][p.name], clip.meta["speaking"][q.name])
     assert [tuple(t) for t in original.meta["turns"]] == clip.meta["turns"]
+    for who, events in original.meta["events"].items():
+        for kind, times in events.items():
+            assert np.array_equal(times, clip.meta["events"][who][kind])
 
 
 def test_split_from_other_generator_code_is_regenerated(small_corpus, capsys):

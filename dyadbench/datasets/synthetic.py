@@ -12,7 +12,8 @@ which folder is used. A non-empty folder without the generator's marker is never
 Splits and sizes: test 533 and ood 377 dialogues (DualTalk's counts), train 800 (about 7 hours, enough
 for small models, generated in about a minute), val 100; mean length about 31 s.
 Clips read back carry the generator's ground truth: identities, ``meta["speaking"]`` from the generated
-speech segments (``meta["speaking_source"] = "generator"``), turns and segments.
+speech segments (``meta["speaking_source"] = "generator"``), turns, segments and the events listeners
+respond to (``meta["events"][name]["phrase_end" | "emphasis"]``, seconds).
 """
 
 from __future__ import annotations
@@ -23,6 +24,8 @@ import shutil
 import sys
 import tempfile
 from pathlib import Path
+
+import numpy as np
 
 from dyadbench.datasets.dualtalk import DualTalkSource
 from dyadbench.errors import InputError
@@ -105,6 +108,8 @@ class SyntheticSource(DualTalkSource):
                 "speaking_source": "generator",
                 "turns": [tuple(t) for t in record["turns"]],
                 "segments": {who: [tuple(s) for s in segs] for who, segs in record["segments"].items()},
+                "events": {who: {kind: np.asarray(times) for kind, times in events.items()}
+                           for who, events in record["events"].items()},
                 "generator": {k: self._marker[k] for k in ("generator", "version", "seed", "split", "style_pool")}}
 
     def describe(self) -> dict:

@@ -87,7 +87,9 @@ def clip_record(clip: DyadicClip) -> dict:
             "identities": {p.name: p.identity for p in clip.participants},
             "turns": [[who, float(s), float(e)] for who, s, e in clip.meta["turns"]],
             "segments": {who: [[s, e, kind] for s, e, kind in segs]
-                         for who, segs in clip.meta["segments"].items()}}
+                         for who, segs in clip.meta["segments"].items()},
+            "events": {who: {kind: [float(t) for t in times] for kind, times in events.items()}
+                       for who, events in clip.meta["events"].items()}}
 
 
 def _write_one(args: tuple[Path, str, int, int]) -> tuple[str, dict]:
