@@ -16,7 +16,8 @@ What drives what (lags in frames at 25 fps; all causal; styles are per person, s
 :mod:`~dyadbench.synth.styles`)::
 
     component              driven by                                     lag            gain (style)
-    jaw opening (jaw 0)    own speech envelope, 1-frame low-pass          2 (80 ms)      jaw_gain ~0.07-0.15 rad
+    jaw opening (jaw 0)    own speech envelope x (1.4 - vowel spread),    2 (80 ms)      jaw_gain ~0.07-0.15 rad
+                           1-frame low-pass; + noise while speaking       -              0.25 jaw_gain
     jaw lateral (jaw 1)    own envelope x (vowel spread - 0.5)            2              0.25 jaw_gain
     exp articulation       own envelope x vowel mix of 2 mouth bases      1 (40 ms)      artic_gain
     exp brow raise         own emphasised syllables (bump, ~0.2 s)        0              0.8
