@@ -150,16 +150,30 @@ def test_small_duration_difference_is_padded(tmp_path):
     assert np.array_equal(back[:-700], audio[:-700]) and not back[-700:].any()
 
 
+def float32_wav(audio: np.ndarray) -> bytes:
+    """A 32-bit IEEE-float mono 16 kHz WAV, the encoding of the DualTalk release."""
+    data = np.asarray(audio, dtype="<f4").tobytes()
+    return struct.pack("<4sI4s4sIHHIIHH4sI", b"RIFF", 36 + len(data), b"WAVE", b"fmt ", 16, 3, 1, 16000,
+                       64000, 4, 32, b"data", len(data)) + data
+
+
 def test_float32_wav_like_the_release(tmp_path):
     audio = (np.sin(np.arange(1600) / 5.0) * 0.5).astype(np.float32)
-    pcm = wav_bytes(audio)
-    data = audio.tobytes()
-    header = struct.pack("<4sI4s4sIHHIIHH4sI", b"RIFF", 36 + len(data), b"WAVE", b"fmt ", 16, 3, 1, 16000,
-                         64000, 4, 32, b"data", len(data))
-    (tmp_path / "f.wav").write_bytes(header + data)
+    (tmp_path / "f.wav").write_bytes(float32_wav(audio))
     assert np.array_equal(read_wav(tmp_path / "f.wav"), audio)
-    (tmp_path / "p.wav").write_bytes(pcm)
+    (tmp_path / "p.wav").write_bytes(wav_bytes(audio))
     assert np.abs(read_wav(tmp_path / "p.wav") - audio).max() <= 1 / 32768
+
+
+def test_nan_in_a_float_wav(tmp_path):
+    clip = write_split(tmp_path, n=1)[0]
+    audio = clip.participants[1].audio.copy()
+    audio[1000] = np.nan
+    path = tmp_path / f"{clip.clip_id}_speaker2.wav"
+    path.write_bytes(float32_wav(audio))
+    assert any(str(path) in e and "non-finite" in e for e in validate_folder(tmp_path, progress=False).errors)
+    with pytest.raises(InputError, match=f"{path.name}.*non-finite"):
+        open_split(tmp_path, "test").load(clip.clip_id)
 
 
 @settings(max_examples=40, deadline=None)

@@ -26,7 +26,7 @@ from dyadbench.arrays import load_npz, nonfinite_count
 from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
 from dyadbench.datasets.dualtalk_files import EXP_DIM, GT_KEYS, POSE_DIM, load_gt_npz
 from dyadbench.datasets.validation import ValidationReport
-from dyadbench.datasets.wav import read_wav, wav_info
+from dyadbench.datasets.wav import read_wav, require_format, wav_info
 from dyadbench.errors import InputError
 from dyadbench.features.activity import count_turns, energy_vad
 from dyadbench.motion import FPS, SAMPLE_RATE
@@ -197,10 +197,11 @@ def _check_npz(path: Path, report: ValidationReport) -> int | None:
 
 
 def _check_wav(path: Path, report: ValidationReport) -> float | None:
-    """Check one wav (16 kHz mono, readable, finite); return its duration in seconds."""
+    """Check one wav (16 kHz mono, readable; float samples finite); return its duration in seconds."""
     try:
-        info = wav_info(path)
-        read_wav(path, sample_rate=SAMPLE_RATE)
+        info = require_format(wav_info(path), SAMPLE_RATE)
+        if info.encoding == "float":  # integer PCM cannot hold NaN/inf
+            read_wav(path, sample_rate=SAMPLE_RATE)
     except InputError as exc:
         report.add(exc)
         return None

@@ -97,13 +97,18 @@ def _info(path: Path, fmt: tuple, data_size: int, offset: int, file_size: int) -
     return WavInfo(path, rate, channels, bits, encoding, data_size // block_align, offset)
 
 
-def read_wav(path: str | Path, *, sample_rate: int | None = 16_000) -> np.ndarray:
-    """Mono float32 samples of ``path``. Requires mono and, unless ``sample_rate`` is None, that rate."""
-    info = wav_info(path)
+def require_format(info: WavInfo, sample_rate: int | None = 16_000) -> WavInfo:
+    """Raise InputError unless the file is mono and (unless ``sample_rate`` is None) at that rate."""
     if info.channels != 1:
         raise InputError(info.path, f"expected mono audio, got {info.channels} channels")
     if sample_rate is not None and info.sample_rate != sample_rate:
         raise InputError(info.path, f"expected {sample_rate} Hz audio, got {info.sample_rate} Hz")
+    return info
+
+
+def read_wav(path: str | Path, *, sample_rate: int | None = 16_000) -> np.ndarray:
+    """Mono float32 samples of ``path``. Requires mono and, unless ``sample_rate`` is None, that rate."""
+    info = require_format(wav_info(path), sample_rate)
     width = info.bits // 8
     with open(info.path, "rb") as f:
         f.seek(info.data_offset)
