@@ -1,7 +1,7 @@
 """The DualTalk/TIMAR metric suite: FD, P-FD, MSE, SID (both orientations), rPCC, STS, Var, Div.
 
-Matches the arithmetic of the DualTalk and TIMAR metric scripts (see the spec
-``metrics-dualtalk.md``): every metric is computed per clip and per FLAME component
+Implements the arithmetic of the DualTalk and TIMAR metric scripts as the spec
+``metrics-dualtalk.md`` describes it: every metric is computed per clip and per FLAME component
 (exp 50 | jaw 3 | pose 3), then averaged over clips by the scorer. All functions are pure (arrays
 in, numbers out). ``p`` is the prediction, ``g`` the agent's ground truth and ``a`` the partner's
 ("anchor") ground truth, each (T, d) for one component after truncation to the shortest length.
@@ -20,7 +20,9 @@ Agreement with the reference: ``benchmarks/bench_score_dualtalk.py`` scores a Du
 with a straightforward implementation of the spec beside dyadbench. Every metric is identical (max
 abs difference 0) under the same BLAS thread count; with a multi-threaded BLAS, P-FD exp differs by
 ~1e-13 (the summation order of the 100x100 matrix products changes). Arithmetic is float64
-throughout (ground truth and predictions are converted on load).
+throughout (ground truth and predictions are converted on load). Not checked: the published
+scripts' own code; if they compute on the float32 arrays as loaded, their values differ from these
+at the float32 round-off level (~1e-7 relative), and k-means labels (SID) may differ slightly.
 """
 
 from __future__ import annotations
