@@ -142,8 +142,10 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
         score(label, _stream("stygazetalk", ModelOptions(weights=paths[variant]), clips, config))
     score("MPGW-sim", _stream("stygazetalk", ModelOptions(weights=paths["se64"], extra={"seed_window": "mpgw-sim"}),
                               clips, config))
+    score("SE-64-VEL + sampled decoding (X1, extension)",
+          _stream("stygazetalk", ModelOptions(weights=paths["se64-vel"], extra={"decoding": "sample"}), clips, config))
     if SHIPPED_MODEL.is_file():
-        score("shipped (tiny SE-64)", _stream("stygazetalk", ModelOptions(), clips, config))
+        score("shipped (tiny SE-64-VEL)", _stream("stygazetalk", ModelOptions(), clips, config))
 
     limit = get_style_config("tiny-se64").angle_limit_deg
     test_segs = load_segments(test_src, limit, 50)

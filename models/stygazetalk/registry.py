@@ -1,6 +1,6 @@
 """``build_stygazetalk``: the registered factory of the ``stygazetalk`` model (gaze7 layout, streaming).
 
-- Weights: ``options.weights`` (a stage-2 checkpoint) or the shipped tiny SE-64 checkpoint.
+- Weights: ``options.weights`` (a stage-2 checkpoint) or the shipped tiny SE-64-VEL checkpoint.
 - ``options.extra["seed_window"]``: ``"gt"`` or ``"mpgw-sim"`` overrides the checkpoint's seed (D30).
 - ``options.extra["decoding"]``: ``"mean"`` (the paper's deterministic model) or ``"sample"`` (X1)
   overrides the checkpoint's decoding.
