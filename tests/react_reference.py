@@ -39,15 +39,20 @@ def neighbours_of(s, k):
     return np.argwhere(s[k] == 1).reshape(-1)
 
 
-def fr_corr(pred, listener, s) -> float:
+def _best_over_neighbours(pred, listener, s, pair_value, best) -> float:
+    """mean over k of sum over i of best(pair_value(...) over the neighbours j of k)."""
     pred, listener = _f32(pred), _f32(listener)
     per_k = []
     for k in range(pred.shape[0]):
         total = 0
         for i in range(pred.shape[1]):
-            total += max(ccc(listener[j], pred[k, i]) for j in neighbours_of(s, k))
+            total += best(pair_value(pred[k, i], listener[j]) for j in neighbours_of(s, k))
         per_k.append(total)
     return float(np.mean(per_k))
+
+
+def fr_corr(pred, listener, s) -> float:
+    return _best_over_neighbours(pred, listener, s, lambda p, lst: ccc(lst, p), max)
 
 
 def grouped_dtw(a, b) -> float:
@@ -58,14 +63,7 @@ def grouped_dtw(a, b) -> float:
 
 
 def fr_dist(pred, listener, s) -> float:
-    pred, listener = _f32(pred), _f32(listener)
-    per_k = []
-    for k in range(pred.shape[0]):
-        total = 0
-        for i in range(pred.shape[1]):
-            total += min(grouped_dtw(pred[k, i], listener[j]) for j in neighbours_of(s, k))
-        per_k.append(total)
-    return float(np.mean(per_k))
+    return _best_over_neighbours(pred, listener, s, grouped_dtw, min)
 
 
 def fr_div(pred) -> float:

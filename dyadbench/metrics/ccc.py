@@ -22,7 +22,7 @@ from numba import njit, prange
 CCC_EPS = 1e-8
 
 
-def _stats(a: np.ndarray) -> dict[str, np.ndarray]:
+def series_stats(a: np.ndarray) -> dict[str, np.ndarray]:
     """Per-channel statistics over the time axis (-2) of ``a`` (..., T, C), float64."""
     a = np.asarray(a, dtype=np.float64)
     n = a.shape[-2]
@@ -47,7 +47,7 @@ def _ccc_from(cross: np.ndarray, gt: dict, pred: dict, n: int) -> np.ndarray:
 
 def ccc_channels(gt: np.ndarray, pred: np.ndarray) -> np.ndarray:
     """Per-channel CCC (C,) of two (T, C) series (``gt`` plays y_true). T >= 2."""
-    gs, ps = _stats(gt), _stats(pred)
+    gs, ps = series_stats(gt), series_stats(pred)
     cross = np.sum(gs["centred"] * ps["centred"], axis=0)
     return _ccc_from(cross, gs, ps, gs["centred"].shape[0])
 
@@ -95,14 +95,16 @@ def _max_ccc_kernel(p_c, p_mean, p_var, p_sd, p_sd1, p_const,
     return best
 
 
-def max_ccc_over_neighbours(predictions: np.ndarray, listener: np.ndarray, indptr: np.ndarray,
+def max_ccc_over_neighbours(predictions: np.ndarray, listener: np.ndarray | dict, indptr: np.ndarray,
                             indices: np.ndarray) -> np.ndarray:
     """(N, R) array: for row k and prediction i, max over neighbours j of CCC(listener[j], predictions[k, i]).
 
-    ``predictions`` (N, R, T, C), ``listener`` (M, T, C); neighbours of row k are
-    ``indices[indptr[k]:indptr[k+1]]`` (each row needs at least one; checked by the caller).
+    ``predictions`` (N, R, T, C), ``listener`` (M, T, C) or its :func:`series_stats` (to reuse them over
+    several calls); neighbours of row k are ``indices[indptr[k]:indptr[k+1]]`` (each row needs at least
+    one; checked by the caller).
     """
-    ps, ls = _stats(predictions), _stats(listener)
+    ps = series_stats(predictions)
+    ls = listener if isinstance(listener, dict) else series_stats(listener)
     return _max_ccc_kernel(ps["centred"], ps["mean"], ps["var"], ps["sd"], ps["sd1"], ps["constant"],
                            ls["centred"], ls["mean"], ls["var"], ls["sd"], ls["sd1"], ls["constant"],
                            np.asarray(indptr, dtype=np.int64), np.asarray(indices, dtype=np.int64))

@@ -310,7 +310,7 @@ def dtw(x, y) -> float:
 
 
 def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool = True,
-                     threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+                     threads: int | None = None, transposed: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """For each query q: the minimum over its candidates r of the weighted grouped DTW, and where.
 
     ``queries`` (Q, T1, D) and ``refs`` (M, T2, D) float64, finite (no rounding is applied here);
@@ -318,12 +318,14 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
     Returns ``(values (Q,), position (Q,))`` where position is the index *within the candidate list* of
     the first candidate attaining the minimum. ``prune`` enables the exact abandoning described in the
     module docstring (same results, less work). ``threads`` caps numba's threads for this call.
+    ``transposed=True``: ``refs`` is given as (M, D, T2) (saves the transposition over repeated calls).
     """
     queries = np.ascontiguousarray(queries, dtype=np.float64)
     refs = np.ascontiguousarray(refs, dtype=np.float64)
+    refs_t = refs if transposed else _transposed(refs)
     indptr = np.asarray(indptr, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
-    if queries.ndim != 3 or refs.ndim != 3 or queries.shape[2] != refs.shape[2]:
+    if queries.ndim != 3 or refs_t.ndim != 3 or queries.shape[2] != refs_t.shape[1]:
         raise InputError("series", f"expected (Q, T1, D) and (M, T2, D), got {queries.shape} and {refs.shape}")
     if indptr.shape != (len(queries) + 1,) or indptr[0] != 0 or indptr[-1] != len(indices):
         raise InputError("candidates", "indptr must have Q + 1 entries from 0 to len(indices)")
@@ -337,7 +339,6 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
     if threads is not None:
         set_num_threads(max(1, min(int(threads), previous)))
     try:
-        return _min_over_candidates(queries, _transposed(refs), indptr, indices, gstart, gstop, weights,
-                                    bool(prune))
+        return _min_over_candidates(queries, refs_t, indptr, indices, gstart, gstop, weights, bool(prune))
     finally:
         set_num_threads(previous)

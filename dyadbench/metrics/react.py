@@ -24,7 +24,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dyadbench.errors import InputError
-from dyadbench.metrics.ccc import max_ccc_over_neighbours
+from dyadbench.metrics.ccc import max_ccc_over_neighbours, series_stats
 from dyadbench.metrics.dtw import min_weighted_dtw
 from dyadbench.metrics.tlcc import float32_mean, tlcc_offsets
 
@@ -137,9 +137,10 @@ def _chunk_indptr(indptr: np.ndarray, rows: slice, reactions: int) -> np.ndarray
 def fr_corr_per_reaction(p, lst, indptr, indices) -> np.ndarray:
     """(N, R): max over appropriate real reactions j of CCC(L[j], P[k, i])."""
     out = np.empty(p.shape[:2])
+    listener_stats = series_stats(lst)
     for rows in _row_chunks(len(p)):
         sub_ptr = indptr[rows.start:rows.stop + 1]
-        out[rows] = max_ccc_over_neighbours(p[rows], lst, sub_ptr - sub_ptr[0],
+        out[rows] = max_ccc_over_neighbours(p[rows], listener_stats, sub_ptr - sub_ptr[0],
                                             indices[sub_ptr[0]:sub_ptr[-1]])
     return out
 
@@ -158,13 +159,14 @@ def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = True, threads
     """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
     n, r = p.shape[:2]
     out = np.empty((n, r))
-    refs = lst.astype(np.float64)
+    refs_t = np.ascontiguousarray(np.transpose(lst, (0, 2, 1)), dtype=np.float64)
     bar = tqdm(total=n, desc="FRDist (DTW)", unit="sample", disable=not progress, leave=False)
     for rows in _row_chunks(n):
         ptr = _chunk_indptr(indptr, rows, r)
         cand = np.concatenate([np.tile(indices[indptr[k]:indptr[k + 1]], r) for k in range(rows.start, rows.stop)])
         queries = p[rows].astype(np.float64).reshape(-1, p.shape[2], DIM)
-        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, prune=prune, threads=threads)
+        values, _ = min_weighted_dtw(queries, refs_t, ptr, cand, DTW_GROUPS, prune=prune, threads=threads,
+                                     transposed=True)
         out[rows] = values.reshape(-1, r)
         bar.update(rows.stop - rows.start)
     bar.close()

@@ -21,11 +21,9 @@ Clip ``i`` depends only on (seed, split, i), so the files do not depend on ``job
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dyadbench import atomic
 from dyadbench.datasets.base import DyadicClip
@@ -35,6 +33,7 @@ from dyadbench.errors import ConfigError
 from dyadbench.features.logmel import logmel_frames
 from dyadbench.motion import flame56_to_l2l
 from dyadbench.synth.corpus import make_clip
+from dyadbench.synth.generation import clip_count, map_tasks
 from dyadbench.synth.styles import GENERATOR_VERSION
 
 HOST = "synth"
@@ -98,20 +97,11 @@ def write_l2l_split(out: str | Path, *, split: str = "test", clips: int | None =
     """Generate ``clips`` dialogues (default: the split's standard size) into ``out/synth/<split>/``."""
     if split not in SPLITS:
         raise ConfigError(f"Learning2Listen splits are {', '.join(SPLITS)}, got {split!r}")
-    n = SPLIT_SIZES[split] if clips is None else int(clips)
-    if n < 1:
-        raise ConfigError(f"--clips must be at least 1, got {n}")
-    if jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    n = clip_count(clips, SPLIT_SIZES[split], jobs)
     folder = Path(out) / HOST / split
     folder.mkdir(parents=True, exist_ok=True)
-    tasks = [(split, i, seed) for i in range(n)]
-    bar = dict(total=n, desc=f"synth l2l/{split}", unit="dialogue", disable=not progress)
-    if jobs == 1:
-        results = [_one(t) for t in tqdm(tasks, **bar)]
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            results = list(tqdm(pool.map(_one, tasks, chunksize=2), **bar))
+    results = map_tasks(_one, [(split, i, seed) for i in range(n)], jobs=jobs, desc=f"synth l2l/{split}",
+                        progress=progress)
     counts = {}
     for listener in (0, 1):
         windows = [w for r in results for w in r[listener]]

@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import io
 import math
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dyadbench import atomic
 from dyadbench.datasets.react import (CLIP_FRAMES, EMOTION_COLUMNS, EMOTION_DIR, FPS, FV_DIR, SCORED_SPLITS,
@@ -32,6 +30,7 @@ from dyadbench.errors import ConfigError
 from dyadbench.motion import EXP, JAW, POSE
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.corpus import make_clip
+from dyadbench.synth.generation import clip_count, map_tasks
 from dyadbench.synth.styles import GENERATOR_VERSION
 
 MARKER = "synthetic.json"
@@ -134,20 +133,11 @@ def write_react_split(out: str | Path, *, split: str = "val", clips: int | None 
     """Generate ``clips`` dialogues (default: the split's standard size) into the REACT root ``out``."""
     if split not in SPLITS:
         raise ConfigError(f"REACT splits are {', '.join(SPLITS)}, got {split!r}")
-    n = SPLIT_SIZES[split] if clips is None else int(clips)
-    if n < 1:
-        raise ConfigError(f"--clips must be at least 1, got {n}")
-    if jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    n = clip_count(clips, SPLIT_SIZES[split], jobs)
     root = Path(out)
     (root / split).mkdir(parents=True, exist_ok=True)
-    tasks = [(root, split, i, seed) for i in range(n)]
-    bar = dict(total=n, desc=f"synth react/{split}", unit="dialogue", disable=not progress)
-    if jobs == 1:
-        results = [_write_one(t) for t in tqdm(tasks, **bar)]
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            results = list(tqdm(pool.map(_write_one, tasks, chunksize=4), **bar))
+    results = map_tasks(_write_one, [(root, split, i, seed) for i in range(n)], jobs=jobs,
+                        desc=f"synth react/{split}", progress=progress)
     pairs = [pair for pair, _ in results]
     lines = [",speaker_path,listener_path"] + [f"{i},{s},{lst}" for i, (s, lst) in enumerate(pairs)]
     atomic.write_text(root / f"{split}.csv", "\n".join(lines) + "\n")

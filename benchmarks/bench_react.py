@@ -1,0 +1,183 @@
+"""REACT suite: fast implementation vs the straightforward loops of the specification.
+
+    python benchmarks/bench_react.py                 # --size small: N = 200 samples (a few minutes)
+    python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750
+
+Problem: R = 10 reactions of T = 750 frames per speaker sample. Ground truth: emotion features of the
+embedded synthetic corpus (:func:`dyadbench.synth.react_writer.emotion_features` of generated
+dialogues, tiled to N samples); neighbours: each row's nearest ``--density`` fraction of listener
+reactions (the real matrix's density is not published; 2% gives ~34 neighbours per row at N = 1676).
+Predictions (``--predictions``): ``plausible`` = another sample's real reaction with 10% of the AUs
+flipped and noise on the continuous features; ``random`` = uniform [0, 1) (the official Random baseline).
+
+Every metric of the fast implementation is timed on the full problem. The straightforward loops
+(``tests/react_reference.py``: tslearn ``dtw`` per pair and group, ``np.cov`` per channel, ...) are
+timed on ``--subset`` speaker rows (FRDvs: a ``--subset``-sample sub-problem) and extrapolated by the
+amount of work (pairs of the subset vs the whole problem). The fast implementation is run on the same
+subset and its numbers compared with the loops' (FRDist and FRSyn must be identical).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+
+import react_reference as ref  # noqa: E402
+from dyadbench.metrics import react  # noqa: E402
+from dyadbench.synth.corpus import make_clip  # noqa: E402
+from dyadbench.synth.react_writer import emotion_features, neighbour_matrix  # noqa: E402
+
+SIZES = {"small": 200, "val": 1676}
+R, T = 10, 750
+
+
+def build_problem(n: int, density: float, kind: str, seed: int = 0):
+    clips = max(2, min(n // 2, 60))
+    people = []
+    for i in range(clips):
+        clip = make_clip("val", i, seed, duration_s=(T + 1) / 25.0)
+        people += [emotion_features(p.motion)[:T] for p in clip.participants]
+    rng = np.random.default_rng(seed)
+    base = np.stack(people)
+    # N samples: the generated people, re-used with a random time shift so that samples differ
+    listener = np.stack([np.roll(base[k % len(base)], int(rng.integers(0, T)), axis=0) for k in range(n)])
+    speaker = np.stack([np.roll(base[(k + 1) % len(base)], int(rng.integers(0, T)), axis=0) for k in range(n)])
+    s = neighbour_matrix(listener, density)
+    if kind == "random":
+        pred = rng.random((n, R, T, 25)).astype(np.float32)
+    else:
+        src = listener[rng.integers(0, n, size=(n, R))]
+        flip = rng.random(src[..., :15].shape) < 0.1
+        pred = src.copy()
+        pred[..., :15] = np.where(flip, 1.0 - src[..., :15], src[..., :15])
+        pred[..., 15:] = src[..., 15:] + rng.normal(0, 0.05, src[..., 15:].shape)
+    return pred.astype(np.float32), listener, speaker, s
+
+
+def csr(rows_matrix):
+    counts = (rows_matrix == 1).sum(axis=1)
+    return np.concatenate([[0], np.cumsum(counts)]).astype(np.int64), np.nonzero(rows_matrix == 1)[1]
+
+
+CPU = {}
+
+
+def timed(fn, *args, **kwargs):
+    """(value, wall seconds); the process CPU seconds (all threads) are kept in CPU[fn name]."""
+    start, cpu = time.perf_counter(), time.process_time()
+    value = fn(*args, **kwargs)
+    CPU[getattr(fn, "__name__", str(fn))] = time.process_time() - cpu
+    return value, time.perf_counter() - start
+
+
+def timed_cpu(fn, *args, **kwargs):
+    """(value, process CPU seconds): the loops run on one thread, so this is their time on an idle core."""
+    value, _ = timed(fn, *args, **kwargs)
+    return value, CPU[fn.__name__]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--size", choices=list(SIZES), default="small", help="small: N=200; val: N=1676")
+    parser.add_argument("--n", type=int, default=None, help="number of speaker samples (overrides --size)")
+    parser.add_argument("--density", type=float, default=0.02, help="neighbours per row as a fraction of N")
+    parser.add_argument("--predictions", choices=["plausible", "random"], default="plausible")
+    parser.add_argument("--subset", type=int, default=2, help="speaker rows (FRDvs: samples x5) for the loops")
+    parser.add_argument("--no-prune", action="store_true", help="also time FRDist without exact pruning")
+    args = parser.parse_args()
+    n = args.n or SIZES[args.size]
+    pred, listener, speaker, s = build_problem(n, args.density, args.predictions)
+    warm_up()
+    p, lst, sp, (indptr, indices) = react.check_inputs(pred, listener, speaker, s)
+    nnz = int(s.sum())
+    print(f"N={n} R={R} T={T} neighbours/row mean {nnz / n:.1f} ({args.density:.1%}), predictions={args.predictions},"
+          f" cpus={os.cpu_count()}, numba threads={react_threads()}")
+
+    fast_full, fast_cpu = {}, {}
+    runs = [("FRCorr", react.fr_corr, (p, lst, indptr, indices), {}),
+            ("FRDist", react.fr_dist, (p, lst, indptr, indices), {}),
+            ("FRDist (no pruning)", react.fr_dist, (p, lst, indptr, indices), {"prune": False}),
+            ("FRDiv", react.fr_div, (p,), {}), ("FRVar", react.fr_var, (p,), {}), ("FRDvs", react.fr_dvs, (p,), {}),
+            ("FRSyn", react.fr_syn, (p, sp), {}), ("FRSyn_all", react.fr_syn, (p, sp), {"all_reactions": True})]
+    for name, fn, fn_args, fn_kwargs in runs:
+        if name.endswith("(no pruning)") and not args.no_prune:
+            continue
+        _, fast_full[name] = timed(fn, *fn_args, **fn_kwargs)
+        fast_cpu[name] = CPU[fn.__name__]
+
+    rows = np.sort(np.random.default_rng(1).choice(n, size=min(args.subset, n), replace=False))
+    sub_s = s[rows]
+    sub_nnz = int(sub_s.sum())
+    sub_ptr, sub_idx = csr(sub_s)
+    m = min(5 * args.subset, n)
+    loops, fast_sub, scale, same = {}, {}, {}, {}
+
+    def compare(name, fast_value, slow_value, exact):
+        same[name] = (fast_value == slow_value) if exact else bool(np.isclose(fast_value, slow_value, rtol=1e-12, atol=0))
+
+    value, loops["FRCorr"] = timed_cpu(ref.fr_corr, pred[rows], listener, sub_s)
+    compare("FRCorr", float(np.mean(react.fr_corr_per_reaction(p[rows], lst, sub_ptr, sub_idx).sum(axis=1))), value, False)
+    scale["FRCorr"] = nnz / sub_nnz
+    value, loops["FRDist"] = timed_cpu(ref.fr_dist, pred[rows], listener, sub_s)
+    per = react.fr_dist_per_reaction(p[rows], lst, sub_ptr, sub_idx)
+    total = np.zeros(len(rows))
+    for i in range(R):
+        total = total + per[:, i]
+    compare("FRDist", float(np.mean(total)), value, True)
+    scale["FRDist"] = nnz / sub_nnz
+    for name, fn, fast_fn in (("FRDiv", ref.fr_div, react.fr_div), ("FRVar", ref.fr_var, react.fr_var)):
+        value, loops[name] = timed_cpu(fn, pred[rows])
+        compare(name, fast_fn(p[rows]), value, False)
+        scale[name] = n / len(rows)
+    value, loops["FRDvs"] = timed_cpu(ref.fr_dvs, pred[:m])
+    compare("FRDvs", react.fr_dvs(p[:m]), value, False)
+    scale["FRDvs"] = n * (n - 1) / (m * (m - 1))
+    value, loops["FRSyn"] = timed_cpu(ref.fr_syn, pred[rows], speaker[rows])
+    compare("FRSyn", react.fr_syn(p[rows], sp[rows]), value, True)
+    scale["FRSyn"] = n / len(rows)
+    value, loops["FRSyn_all"] = timed_cpu(ref.fr_syn, pred[rows], speaker[rows], all_reactions=True)
+    compare("FRSyn_all", react.fr_syn(p[rows], sp[rows], all_reactions=True), value, True)
+    scale["FRSyn_all"] = n / len(rows)
+
+    print(f"\nloops timed on {len(rows)} speaker rows ({sub_nnz} neighbours; FRDvs on {m} samples), "
+          "extrapolated to the full problem\n")
+    print("fast wall = elapsed seconds; fast cpu = process CPU seconds (all threads); loops est. = CPU seconds of\n"
+          "the single-threaded loops (= their time on an idle core), extrapolated\n")
+    print(f"{'metric':<22}{'fast wall':>10}{'fast cpu':>10}{'loops est.':>12}{'wall x':>9}{'cpu x':>8}"
+          "  identical on subset")
+    total = np.zeros(3)
+    for name, seconds in fast_full.items():
+        key = name.split(" ")[0]
+        est = loops[key] * scale[key]
+        if name == key:
+            total += (seconds, fast_cpu[name], est)
+        print(f"{name:<22}{seconds:>10.2f}{fast_cpu[name]:>10.2f}{est:>12.1f}{est / seconds:>8.1f}x"
+              f"{est / fast_cpu[name]:>7.1f}x  {same[key]}")
+    print(f"{'whole suite':<22}{total[0]:>10.2f}{total[1]:>10.2f}{total[2]:>12.1f}{total[2] / total[0]:>8.1f}x"
+          f"{total[2] / total[1]:>7.1f}x")
+
+
+def warm_up() -> None:
+    """Compile / load every numba function (fast side and tslearn) before timing anything."""
+    rng = np.random.default_rng(9)
+    pred, listener, speaker = rng.random((3, 2, 60, 25)), rng.random((3, 60, 25)), rng.random((3, 60, 25))
+    s = np.ones((3, 3), dtype=np.int64)
+    react.score(pred, listener, speaker, s, reactions=None)
+    ref.score(pred[:2], listener, speaker[:2], s[:2])
+
+
+def react_threads() -> int:
+    import numba
+
+    return numba.get_num_threads()
+
+
+if __name__ == "__main__":
+    main()
