@@ -65,8 +65,8 @@ def main(ks, steps, batch, levels, clips, test_windows, seed, threads, out) -> N
                   val_every=steps)
     open_split = DATASETS.load("synthetic")
     train_src, test_src = open_split(None, "train"), open_split(None, "test")
-    train_raw = clip_motions([train_src.load(i) for i in train_src.clip_ids()[:clips]])
-    test_raw = clip_motions([test_src.load(i) for i in test_src.clip_ids()])
+    train_raw = clip_motions(train_src.load(i) for i in train_src.clip_ids()[:clips])
+    test_raw = clip_motions(test_src.load(i) for i in test_src.clip_ids())
     mean, std = motion_stats(train_raw)
     train = [(a - mean) / std for a in train_raw]
     test = eval_windows([(a - mean) / std for a in test_raw], 48, limit=test_windows)

@@ -122,3 +122,16 @@ def test_normalisation_round_trip():
     model.motion_std.fill_(3.0)
     x = torch.randn(2, 48, 56)
     torch.testing.assert_close(model.denormalise(model.normalise(x)), x)
+
+
+def test_ema_weights_are_what_is_kept():
+    windows = smooth_windows(16)
+    drift = {}
+    for decay in (0.0, 0.999):
+        cfg = micro(steps=8, batch=8, val_every=8, ema_decay=decay, lr_main=1e-2)
+        torch.manual_seed(0)
+        init = SFMSTokenizer(cfg).state_dict()
+        model, _ = fit_tokenizer(cfg, list(windows), windows[:4], motion_mean=np.zeros(56),
+                                 motion_std=np.ones(56), seed=0, progress=False)
+        drift[decay] = float((model.out.weight - init["out.weight"]).abs().max())
+    assert drift[0.999] < 0.1 * drift[0.0]  # the slow average barely moves from the initial weights

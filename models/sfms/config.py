@@ -120,6 +120,7 @@ class TokenizerConfig:
     steps: int = 20_000  # D28
     batch: int = 256
     val_every: int = 500
+    ema_decay: float = 0.0  # EMA of the weights for validation and the checkpoint (0 = off)
     normalisation: str = "zscore"  # D22
 
     def __post_init__(self) -> None:
@@ -191,6 +192,7 @@ class PredictorConfig:
     grad_clip: float = 1.0
     steps: int = 20_000
     batch: int = 256
+    ema_decay: float = 0.0  # EMA of the weights for validation and the checkpoint (0 = off)
 
     def __post_init__(self) -> None:
         _check_choices(self, PREDICTOR_CHOICES)

@@ -27,14 +27,21 @@ from dyadbench.scoring.report import ScoreItem
 COLUMNS = ("fd_exp", "fd_pose", "pfd_exp", "pfd_pose")
 
 
-def run_items(result: EvalResult, run: Path) -> list[ScoreItem]:
-    """ScoreItems of one eval run: prediction, the agent's ground truth and the partner's motion."""
+def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Path | None = None
+              ) -> list[ScoreItem]:
+    """ScoreItems of one eval run: prediction, the agent's ground truth and the partner's motion.
+
+    ``clips``: only the predictions of the first N clips (sorted ids), to compare runs on a common subset.
+    ``data``: the dataset root the run was evaluated on (None: the embedded corpus / the adapter's default).
+    """
     pred_dir = Path(result.predictions) if result.predictions else run / "predictions"
     files = sorted(pred_dir.glob("*.npy"))
+    if clips is not None:
+        keep = sorted({f.stem.rpartition("_")[0] for f in files})[:clips]
+        files = [f for f in files if f.stem.rpartition("_")[0] in keep]
     if not files:
         raise InputError(pred_dir, "no predictions (run `dyadbench eval ... --out RUN` to keep them)")
-    source = open_dataset_split(result.data.dataset, Path(result.data.root) if result.data.root else None,
-                                result.data.split)
+    source = open_dataset_split(result.data.dataset, data, result.data.split)
     clips, items = {}, []
     for path in files:
         clip_id, _, agent = path.stem.rpartition("_")
@@ -62,14 +69,18 @@ def table(rows: list[dict]) -> str:
 @click.command()
 @click.argument("runs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--seed", default=0, show_default=True, help="Seed of the suite's randomised parts (k-means).")
+@click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
+              help="Dataset root the runs were evaluated on (default: the embedded synthetic corpus).")
+@click.option("--clips", type=click.IntRange(min=1), default=None,
+              help="Score only the first N clips (sorted ids) of every run: a common subset.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Markdown file to write the table to (atomically).")
-def main(runs: tuple[Path, ...], seed: int, out: Path | None) -> None:
+def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, out: Path | None) -> None:
     """Re-score RUNS (folders written by `dyadbench eval --out`) with the L2L-line suite."""
     rows = []
     for run in runs:
         result = load_result(run / "result.json")
-        report = l2l.score_arrays(run_items(result, run), seed=seed)
+        report = l2l.score_arrays(run_items(result, run, clips, data), seed=seed)
         rows.append({"model": result.model.name, "context": result.protocol.context, "items": report.n_scored,
                      **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
         click.echo(f"{result.model.name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from dyadbench.training.ema import EMA
 from models.sfms.bundle import SFMS
 from models.sfms.config import PredictorConfig
 from models.sfms.data import DirectedClip, PredictorBatch, sample_predictor_batch
@@ -84,6 +85,7 @@ def fit_predictor(cfg: PredictorConfig, tokenizer: SFMSTokenizer, train: list[Di
     history: dict = {"steps": [], "val": [], "seed": seed, "world_size": world.size}
     seen_targets = []
     best_val, best_state, best_step = float("inf"), None, -1
+    ema = EMA(model, cfg.ema_decay) if cfg.ema_decay > 0 else None
     t0 = time.perf_counter()
     bar = tqdm(range(cfg.steps), desc="sfms predictor", disable=not (progress and world.main))
     for step in bar:
@@ -97,17 +99,20 @@ def fit_predictor(cfg: PredictorConfig, tokenizer: SFMSTokenizer, train: list[Di
         losses["loss"].backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), cfg.grad_clip)
         opt.step()
+        if ema is not None:
+            ema.update(model)
         record = {k: float(v.detach()) for k, v in losses.items()}
         record["step"] = step
         history["steps"].append(record)
         bar.set_postfix(loss=f"{record['loss']:.3f}")
         if world.main and ((step + 1) % val_every == 0 or step + 1 == cfg.steps):
-            ce, val_targets = validation_ce(model, tokenizer, val_batch, weights)
+            scored = ema.shadow if ema is not None else model
+            ce, val_targets = validation_ce(scored, tokenizer, val_batch, weights)
             history["val"].append({"step": step + 1, "ce": ce,
                                    "unigram_ce": unigram_ce(torch.cat(seen_targets), val_targets.cpu(),
                                                             weights.cpu())})
             if ce < best_val:
-                best_val, best_step, best_state = ce, step + 1, copy.deepcopy(model.state_dict())
+                best_val, best_step, best_state = ce, step + 1, copy.deepcopy(scored.state_dict())
     if best_state is not None:
         model.load_state_dict(best_state)
     history.update(best_val_ce=best_val, best_step=best_step, train_seconds=time.perf_counter() - t0)

@@ -16,6 +16,7 @@ import numpy as np
 import torch
 from tqdm import tqdm
 
+from dyadbench.training.ema import EMA
 from models.sfms.config import TokenizerConfig
 from models.sfms.data import sample_motion_windows
 from models.sfms.distributed import World, wrap
@@ -81,6 +82,7 @@ def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray
     phase_b = cfg.steps - warm
     history: dict = {"steps": [], "val": [], "seed": seed, "world_size": world.size}
     best_val, best_state, best_step = float("inf"), None, -1
+    ema = EMA(model, cfg.ema_decay) if cfg.ema_decay > 0 else None
     t0 = time.perf_counter()
     bar = tqdm(range(cfg.steps), desc=f"sfms tokenizer ({cfg.keyframe_mode})", disable=not (progress and world.main))
     for step in bar:
@@ -107,17 +109,20 @@ def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray
         opt_main.step()
         if dynamic and not warming and j % cfg.scorer_update_every == 0:
             opt_score.step()
+        if ema is not None:
+            ema.update(model)
         record = {k: float(v.detach()) for k, v in losses.items() if k != "codes"}
         record.update(step=step, tau=float(model.tau), lr_main=lr_main,
                       perplexity=code_perplexity(losses["codes"], cfg.n_codes))
         history["steps"].append(record)
         bar.set_postfix(loss=f"{record['loss']:.3f}", mse=f"{record['motion']:.3f}")
         if world.main and ((step + 1) % cfg.val_every == 0 or step + 1 == cfg.steps) and step + 1 > warm:
-            val_mse = reconstruction_mse(model, val)
+            scored = ema.shadow if ema is not None else model
+            val_mse = reconstruction_mse(scored, val)
             history["val"].append({"step": step + 1, **val_mse})
             if val_mse["mse_z"] < best_val:
                 best_val, best_step = val_mse["mse_z"], step + 1
-                best_state = copy.deepcopy(model.state_dict())
+                best_state = copy.deepcopy(scored.state_dict())
     if best_state is not None:
         model.load_state_dict(best_state)
     history.update(best_val_mse_z=best_val, best_step=best_step, train_seconds=time.perf_counter() - t0)
