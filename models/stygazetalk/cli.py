@@ -2,15 +2,29 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import replace
 from pathlib import Path
+from typing import Callable
 
 import click
 
 from dyadbench.errors import ConfigError
 
-THREADS_HELP = "Torch CPU threads (the shipped tiny runs use 2)."
+THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1)."
 DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
+
+
+def data_options(val_help: str) -> Callable:
+    """--dataset / --data / --train-split / --val-split, shared by both trainers."""
+    options = [
+        click.option("--dataset", default="synthetic-gaze", show_default=True, help=DATASET_HELP),
+        click.option("--data", "root", type=click.Path(file_okay=False, path_type=Path), default=None,
+                     help="Dataset root folder (default: the embedded synthetic sessions, generated on first use)."),
+        click.option("--train-split", default="train", show_default=True, help="Split to train on."),
+        click.option("--val-split", default="val", show_default=True, help=val_help),
+    ]
+    return lambda f: functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
 
 def _open(dataset: str, root: Path | None, split: str):
@@ -26,12 +40,7 @@ def _overrides(base, **values):
 @click.command("stygazetalk-style")
 @click.option("--config", "config_name", default="tiny-se64", show_default=True,
               help="Style-encoder preset: tiny-se64, tiny-se32, base-se64, base-se32.")
-@click.option("--dataset", default="synthetic-gaze", show_default=True, help=DATASET_HELP)
-@click.option("--data", "root", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Dataset root folder (default: the embedded synthetic sessions, generated on first use).")
-@click.option("--train-split", default="train", show_default=True, help="Split to train on.")
-@click.option("--val-split", default="val", show_default=True,
-              help="Split for early-stopping selection (validation NT-Xent) and the retrieval check.")
+@data_options("Split for early-stopping selection (validation NT-Xent) and the retrieval check.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
 @click.option("--batch", type=click.IntRange(min=2), default=None,
               help="Override the preset's pairs per batch (anchors of one session stay >= 10 s apart).")
@@ -68,7 +77,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     meta = {"data": {"train": train_src.describe(), "val": val_src.describe()}, "seed": cfg.seed,
             "steps": cfg.steps, "best_step": log.best_step, "best_val_nt_xent": log.best_val,
             "train_seconds": log.seconds, "val_retrieval_top1": acc, "val_retrieval_chance": chance,
-            "curve": {"step": log.steps, "train": log.train_loss, "val": log.val_loss}}
+            "curve": log.curve()}
     path = save_style_model(out, model, meta)
     click.echo(f"style encoder {cfg.name}: best val NT-Xent {log.best_val:.4f} at step {log.best_step} "
                f"({log.seconds:.0f} s); val retrieval top-1 {acc:.3f} (chance {chance:.3f}); wrote {path}")
@@ -81,12 +90,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--style-encoder", "style_path", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Stage-1 checkpoint (required for every variant but base); it is frozen and copied "
                    "into the generator checkpoint together with its motion statistics.")
-@click.option("--dataset", default="synthetic-gaze", show_default=True, help=DATASET_HELP)
-@click.option("--data", "root", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Dataset root folder (default: the embedded synthetic sessions).")
-@click.option("--train-split", default="train", show_default=True, help="Split to train on.")
-@click.option("--val-split", default="val", show_default=True,
-              help="Split for checkpoint selection (teacher-forced validation loss).")
+@data_options("Split for checkpoint selection (teacher-forced validation loss).")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
 @click.option("--batch", type=click.IntRange(min=1), default=None, help="Override the preset's batch size.")
 @click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
@@ -129,7 +133,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
             "steps": cfg.steps, "style_encoder_digest": style_digest, "best_step": log.best_step,
             "best_val_loss": log.best_val, "step0_val_loss": log.step0_val_loss, "train_seconds": log.seconds,
             "train_windows": log.train_windows,
-            "curve": {"step": log.steps, "train": log.train_loss, "val": log.val_loss}}
+            "curve": log.curve()}
     path = save_system(out, system, meta)
     click.echo(f"generator {cfg.name} ({cfg.variant}): val loss {log.step0_val_loss:.4f} -> {log.best_val:.4f} "
                f"(best step {log.best_step}, {log.seconds:.0f} s); wrote {path}")

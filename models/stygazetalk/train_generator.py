@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -23,6 +23,7 @@ from models.stygazetalk.config import GeneratorConfig
 from models.stygazetalk.data import Segment, WindowBank, build_window_bank, stacked_motion
 from models.stygazetalk.normalise import ZScore
 from models.stygazetalk.system import StyGazeTalkSystem
+from models.stygazetalk.train_log import TrainLog
 
 
 def generator_loss(pred: torch.Tensor, target: torch.Tensor, predecessor: torch.Tensor, lam: float
@@ -41,14 +42,8 @@ def generator_loss(pred: torch.Tensor, target: torch.Tensor, predecessor: torch.
 
 
 @dataclass
-class GeneratorTrainLog:
-    steps: list[int] = field(default_factory=list)
-    train_loss: list[float] = field(default_factory=list)
-    val_loss: list[float] = field(default_factory=list)
+class GeneratorTrainLog(TrainLog):
     step0_val_loss: float = float("nan")
-    best_step: int = 0
-    best_val: float = float("inf")
-    seconds: float = 0.0
     train_windows: int = 0
 
 
@@ -127,7 +122,7 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: _cosine(k, cfg))
     log = GeneratorTrainLog(train_windows=len(train_bank))
     log.step0_val_loss = _val_loss(system, val_bank, cfg.batch)
-    best_state, start = None, time.perf_counter()
+    start = time.perf_counter()
     for step in tqdm(range(1, cfg.steps + 1), desc=f"generator {cfg.name}", disable=not progress or None):
         system.train()
         idx = rng.integers(0, len(train_bank), size=cfg.batch)
@@ -140,14 +135,8 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
         opt.step()
         sched.step()
         if step % cfg.val_every == 0 or step == cfg.steps:
-            val = _val_loss(system, val_bank, cfg.batch)
-            log.steps.append(step)
-            log.train_loss.append(float(loss.item()))
-            log.val_loss.append(val)
-            if val < log.best_val:
-                log.best_val, log.best_step = val, step
-                best_state = {k: v.clone() for k, v in system.state_dict().items()}
-    system.load_state_dict(best_state)
+            log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch), system)
+    log.restore_best(system)
     system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
     system.eval()
     log.seconds = time.perf_counter() - start

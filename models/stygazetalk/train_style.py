@@ -7,8 +7,6 @@ NT-Xent (fixed, seeded validation batches) are kept (early-stopping selection).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
-
 import numpy as np
 import torch
 from torch import nn
@@ -20,6 +18,7 @@ from models.stygazetalk.config import MOTION_DIM, StyleEncoderConfig
 from models.stygazetalk.data import Segment, sample_style_pairs, stacked_motion
 from models.stygazetalk.normalise import ZScore
 from models.stygazetalk.style_encoder import StyleEncoder, nt_xent
+from models.stygazetalk.train_log import TrainLog
 
 VAL_BATCHES = 8  # fixed validation batches of min(batch_pairs, 2 x sessions) pairs
 
@@ -41,22 +40,12 @@ class StyleModel(nn.Module):
             return self.encoder(x).numpy()
 
 
-@dataclass
-class StyleTrainLog:
-    steps: list[int] = field(default_factory=list)
-    train_loss: list[float] = field(default_factory=list)
-    val_loss: list[float] = field(default_factory=list)
-    best_step: int = 0
-    best_val: float = float("inf")
-    seconds: float = 0.0
-
-
 def _pair_tensors(segments: list[Segment], norm: list[np.ndarray], pairs, window: int) -> torch.Tensor:
     return torch.from_numpy(np.stack([norm[i][s:s + window] for i, s in pairs]))
 
 
 def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list[Segment], *,
-                        val_every: int = 50, progress: bool = True) -> tuple[StyleModel, StyleTrainLog]:
+                        val_every: int = 50, progress: bool = True) -> tuple[StyleModel, TrainLog]:
     torch.manual_seed(derive_seed("stygazetalk-style", cfg.seed))
     model = StyleModel(cfg)
     model.motion_norm.load_state_dict(ZScore.fit(stacked_motion(train)).state_dict())
@@ -72,7 +61,7 @@ def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list
         val_batches.append((_pair_tensors(val, norm_val, a, cfg.window), _pair_tensors(val, norm_val, b, cfg.window)))
     rng = np.random.default_rng(derive_seed("stygazetalk-style-train", cfg.seed))
     opt = torch.optim.Adam(model.encoder.parameters(), lr=cfg.lr)
-    log, best_state, start = StyleTrainLog(), None, time.perf_counter()
+    log, start = TrainLog(), time.perf_counter()
     for step in tqdm(range(1, cfg.steps + 1), desc=f"style {cfg.name}", disable=not progress or None):
         model.train()
         a, b = sample_style_pairs(train, rng, batch=cfg.batch_pairs, **sample)
@@ -86,13 +75,8 @@ def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list
             with torch.no_grad():
                 val_loss = float(np.mean([nt_xent(model.encoder(va), model.encoder(vb), cfg.temperature,
                                                   cfg.loss_reduction).item() for va, vb in val_batches]))
-            log.steps.append(step)
-            log.train_loss.append(float(loss.item()))
-            log.val_loss.append(val_loss)
-            if val_loss < log.best_val:
-                log.best_val, log.best_step = val_loss, step
-                best_state = {k: v.clone() for k, v in model.state_dict().items()}
-    model.load_state_dict(best_state)
+            log.record(step, loss.item(), val_loss, model)
+    log.restore_best(model)
     model.eval()
     log.seconds = time.perf_counter() - start
     return model, log
