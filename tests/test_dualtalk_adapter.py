@@ -14,7 +14,8 @@ from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.datasets.wav import read_wav, wav_bytes, write_wav
 from dyadbench.errors import InputError
 from dyadbench.features.activity import energy_vad
-from dyadbench.synth.calibration import REAL_CLIPS, motion_statistics
+from dyadbench.datasets.statistics import motion_statistics
+from dyadbench.synth.calibration import REAL_CLIPS
 from dyadbench.synth.corpus import make_clip
 from dyadbench.synth.writers import write_clip
 
@@ -202,6 +203,9 @@ def test_folder_info_counts(tmp_path):
     assert info["frames"] == sum(c.num_frames for c in clips) == 400
     assert info["hours"] == pytest.approx(16.0 / 3600)
     assert info["turns"]["total"] >= 2
+    assert set(info["motion_statistics_mean"]) == set(REAL_CLIPS)
+    assert info["motion_statistics_mean"]["head_std"] == pytest.approx(
+        np.mean([motion_statistics(p.motion)["head_std"] for c in clips for p in c.participants]), rel=1e-6)
 
 
 @needs_demo

@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
+from dyadbench.datasets.statistics import motion_statistics
 from dyadbench.errors import ConfigError
 from dyadbench.features.activity import count_turns
-from dyadbench.synth.calibration import REAL_CLIPS, calibration_range, motion_statistics
+from dyadbench.synth.calibration import REAL_CLIPS, calibration_range
 from dyadbench.synth.corpus import make_clip, make_clips
 from dyadbench.synth.styles import STYLE_RANGES, style_pool
 

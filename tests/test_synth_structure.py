@@ -5,7 +5,7 @@ import pytest
 
 from dyadbench.features.activity import energy_vad, runs
 from dyadbench.features.logmel import rms_envelope
-from dyadbench.synth.calibration import best_lagged_r
+from dyadbench.datasets.statistics import best_lagged_r
 from dyadbench.synth.corpus import make_clips
 from dyadbench.synth.styles import world
 

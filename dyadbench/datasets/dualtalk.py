@@ -25,6 +25,7 @@ from tqdm import tqdm
 from dyadbench.arrays import load_npz, nonfinite_count
 from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
 from dyadbench.datasets.dualtalk_files import EXP_DIM, GT_KEYS, POSE_DIM, load_gt_npz
+from dyadbench.datasets.statistics import motion_statistics
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.datasets.wav import read_wav, require_format, wav_info
 from dyadbench.errors import InputError
@@ -257,14 +258,19 @@ def validate_folder(folder: str | Path, progress: bool = True) -> ValidationRepo
 # --- description --------------------------------------------------------------------------------------
 
 def _clip_stats(files: ClipFiles) -> dict:
-    """Frames, seconds, VAD talk fractions and turn count of one dialogue from the files present."""
-    frames = [load_gt_npz(files.path(s, "npz")).shape[0] for s in SPEAKERS if (s, "npz") in files.found]
-    wavs = [files.path(s, "wav") for s in SPEAKERS if (s, "wav") in files.found]
-    seconds = min(frames) / FPS if frames else min((wav_info(w).duration_s for w in wavs), default=0.0)
-    out = {"frames": int(round(seconds * FPS)), "seconds": seconds, "turns": None, "talk": [], "overlap": None}
-    if len(wavs) == 2:
-        n = out["frames"]
-        masks = [energy_vad(read_wav(w, sample_rate=SAMPLE_RATE), SAMPLE_RATE, FPS)[:n] for w in wavs]
+    """Frames, seconds, motion statistics, VAD talk fractions and turn count of one dialogue, from the
+    files present."""
+    motions = {s: load_gt_npz(files.path(s, "npz")) for s in SPEAKERS if (s, "npz") in files.found}
+    audios = {s: read_wav(files.path(s, "wav"), sample_rate=SAMPLE_RATE) for s in SPEAKERS
+              if (s, "wav") in files.found}
+    if motions:
+        frames = min(len(m) for m in motions.values())
+    else:
+        frames = int(min(len(a) for a in audios.values()) // HOP) if audios else 0
+    out = {"frames": frames, "seconds": frames / FPS, "turns": None, "talk": [], "overlap": None,
+           "motion": [motion_statistics(m, audios.get(s), SAMPLE_RATE, FPS) for s, m in motions.items()]}
+    if len(audios) == 2:
+        masks = [energy_vad(a, SAMPLE_RATE, FPS)[:frames] for a in audios.values()]
         n = min(len(m) for m in masks)
         masks = [m[:n] for m in masks]
         union = (masks[0] | masks[1]).sum()
@@ -274,9 +280,10 @@ def _clip_stats(files: ClipFiles) -> dict:
 
 
 def folder_info(folder: str | Path, progress: bool = True) -> dict:
-    """Per split: dialogues (complete / incomplete), hours, frames, clip lengths, and from the energy VAD
-    talk fraction per participant, overlap / union of talking, and turn counts (see
-    :mod:`dyadbench.features.activity`)."""
+    """Per split: dialogues (complete / incomplete), hours, frames, clip lengths; from the energy VAD
+    the talk fraction per participant, overlap / union of talking and turn counts (see
+    :mod:`dyadbench.features.activity`); the mean per-participant motion statistics of
+    :mod:`dyadbench.datasets.statistics` (comparable with :mod:`dyadbench.synth.calibration`)."""
     folder = Path(folder)
     if not folder.is_dir():
         raise InputError(folder, "folder not found")
@@ -292,6 +299,7 @@ def folder_info(folder: str | Path, progress: bool = True) -> dict:
         turns = np.array([s["turns"] for s in stats if s["turns"] is not None], dtype=float)
         talk = [t for s in stats for t in s["talk"]]
         overlap = [s["overlap"] for s in stats if s["overlap"] is not None]
+        motion = [m for s in stats for m in s["motion"]]
         info["splits"][split.name] = {
             "dialogues": len(clips),
             "complete": sum(1 for f in clips.values() if not f.missing()),
@@ -305,5 +313,7 @@ def folder_info(folder: str | Path, progress: bool = True) -> dict:
                       | {"4+": int((turns >= 4).sum()), "0": int((turns == 0).sum())}},
             "talk_fraction_mean": float(np.mean(talk)) if talk else None,
             "overlap_over_union_mean": float(np.mean(overlap)) if overlap else None,
+            "motion_statistics_mean": {k: float(np.mean([m[k] for m in motion])) for k in motion[0]}
+            if motion else None,
         }
     return info
