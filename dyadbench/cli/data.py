@@ -77,6 +77,8 @@ def info(folder: Path, layout: str) -> None:
     dualtalk: dialogues (complete / incomplete), hours, frames, clip lengths, and from an energy VAD
     (frame RMS above the midpoint between the 10th and 95th level percentiles, gaps < 0.3 s filled,
     runs < 0.12 s dropped) the talk fraction, overlap / union of talking and turn counts (a turn changes
-    when a segment of >= 1 s by the other participant starts).
+    when a segment of >= 1 s by the other participant starts); the mean per-participant motion
+    statistics (expression / head / jaw spread and speed, jaw-speech correlation), the quantities the
+    synthetic corpus is calibrated on.
     """
     click.echo(to_json(get_layout(layout).describe(folder)), nl=False)
