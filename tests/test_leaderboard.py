@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,6 +19,7 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.runner import evaluate
 from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
+from tests.protocol_expectations import corpus_structure_failures
 
 MODELS = ("zero", "mean-frame", "mime", "oracle")
 
@@ -134,3 +136,39 @@ def test_leaderboard_command_writes_atomically_and_deterministically(results_dir
     assert set(long["source"]) == {"dyadbench", "paper"}
     result = CliRunner().invoke(cli, args + ["--no-paper"], catch_exceptions=False)
     assert set(pd.read_csv(out / "long.csv")["source"]) == {"dyadbench"}
+
+
+# --- the committed leaderboards of the embedded benchmark ------------------------------------------
+
+REPO = Path(__file__).resolve().parents[1]
+BASELINES = ("zero", "mean-frame", "median-frame", "random", "mime", "lagged-mirror", "nn-retrieval", "oracle")
+
+
+def _committed_long() -> pd.DataFrame:
+    return pd.read_csv(REPO / "leaderboards" / "long.csv", dtype={"context": "Int64"})
+
+
+def test_committed_leaderboards_are_rebuilt_exactly_from_committed_results(tmp_path, monkeypatch):
+    monkeypatch.chdir(REPO)
+    result = CliRunner().invoke(cli, ["leaderboard", "results", "--out", str(tmp_path), "--latex"],
+                                catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    for name in ("long.csv", "dualtalk_wide.csv", "dualtalk_wide.tex"):
+        assert (tmp_path / name).read_bytes() == (REPO / "leaderboards" / name).read_bytes(), name
+
+
+def test_committed_leaderboard_has_every_baseline_at_n_0_3_7_on_test_and_ood():
+    long = _committed_long()
+    ours = long[(long["source"] == "dyadbench") & (long["dataset"] == "synthetic")]
+    for split in ("test", "ood"):
+        for n in (0, 3, 7):
+            models = set(ours.loc[(ours["split"] == split) & (ours["context"] == n), "model"])
+            assert set(BASELINES) <= models, (split, n, sorted(set(BASELINES) - models))
+
+
+def test_committed_leaderboard_shows_the_corpus_structure_on_test_at_n_7():
+    long = _committed_long()
+    part = long[(long["source"] == "dyadbench") & (long["dataset"] == "synthetic") & (long["split"] == "test")
+                & (long["context"] == 7)]
+    scores = {model: dict(zip(g["metric"], g["raw"])) for model, g in part.groupby("model")}
+    assert corpus_structure_failures(scores) == []

@@ -5,8 +5,9 @@ every clip through :func:`~dyadbench.protocol.streaming.stream_agent` (or the of
 full-sequence models), writes each prediction as ``<clip>_<agent>.npy`` (T', D) float32 — the
 DualTalk/TIMAR prediction layout, so ``dyadbench score`` on the folder reproduces the numbers — and
 scores the same arrays with the suite of the motion layout (flame56: DualTalk/TIMAR suite; gaze7: the
-gaze–head suite). With ``jobs > 1`` clips are streamed in that many worker processes (started fresh,
-each building its own model from the same options) and the suite scores with ``jobs`` workers too.
+gaze–head suite). With ``jobs > 1`` clips are streamed in that many worker processes (each building
+its own model from the same options; forked, or spawned once torch is loaded) and the suite scores with
+``jobs`` workers too.
 Scores are memoised within a process by a digest of the scored arrays (:func:`score_items`), so a sweep
 scores the byte-identical predictions of a history-free model once across context lengths; streaming
 and timing are always run.
@@ -223,6 +224,9 @@ def _stream_all(model, model_name, options, source, ids, config, keep_audio, job
     except Exception as exc:
         raise ConfigError(f"--jobs > 1 needs picklable model options and clip source ({exc}); "
                           f"use jobs=1") from None
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn"), initializer=_init_worker,
+    # Forked workers share the parent's code and memory; a process that has loaded torch spawns fresh ones
+    # (forking after torch's thread pools have started is unsafe).
+    method = "spawn" if "torch" in sys.modules or sys.platform != "linux" else "fork"
+    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context(method), initializer=_init_worker,
                              initargs=(model_name, options, source, config, keep_audio)) as pool:
         yield from pool.map(_worker_clip, ids, chunksize=max(1, min(16, len(ids) // (4 * jobs))))
