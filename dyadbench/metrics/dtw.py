@@ -10,8 +10,10 @@ T1 x T2 grid)::
 The kernel performs exactly these floating-point operations in exactly this order for every cell, so
 its values equal tslearn's bit for bit (the tests check this); only the schedule differs:
 
-- **lanes**: :data:`LANES` reference series are aligned against one query at once, one SIMD lane each
-  (the query frame is shared by all lanes; the references are stored lane-interleaved);
+- **lanes**: :data:`LANES` pairs that share one series are aligned at once, one SIMD lane each (the
+  shared series' frame is broadcast; the other series are stored lane-interleaved). DTW is symmetric
+  operation for operation (the transposed grid adds the same costs to the same minima), so pairs are
+  grouped by whichever side they share, e.g. all queries that have a given reference as candidate;
 - **strips**: the grid is swept in column strips of :data:`STRIP` columns over all rows, so the strip of
   the references stays in the L1 cache; the right border of a strip is kept for the next one;
 - **groups**: several dimension groups (REACT: AUs 0:15, valence/arousal 15:17, expressions 17:25), each
@@ -23,10 +25,10 @@ Minimum over candidates with exact pruning (:func:`min_weighted_dtw`): every war
 column, so after a strip ending at column j, ``m_g = min_i C_g(i, j)`` satisfies ``m_g <= C_g(T1-1, T2-1)``
 exactly in floating point (each cell adds a non-negative cost to a minimum of its predecessors, and
 rounding is monotone). Hence ``lb = 0 + w_0 sqrt(m_0) + ...`` never exceeds the pair's computed value.
-A batch of lanes is abandoned only when every lane's ``lb`` is strictly greater than the best value
-already found for that query, so the minimum (and the first index attaining it) is unchanged.
-Candidates are tried in increasing order of their diagonal-path cost (an upper bound of DTW) so that a
-good value is found early; the order affects the running time only, never the result.
+Each query's candidate with the smallest diagonal-path cost (an upper bound of DTW) is computed first;
+every other pair then carries that value as its lane's threshold, and a batch is abandoned only when
+every lane's ``lb`` is strictly greater than its threshold, so the minimum (and the first candidate
+attaining it) is unchanged. The order of the work affects the running time only, never the result.
 """
 
 from __future__ import annotations
@@ -55,12 +57,12 @@ def _strip_bound(bnd, rows, lane, weights):
 
 
 @njit(cache=True, nogil=True)
-def _align_lanes(x, ys, gstart, gstop, weights, threshold, out):
-    """Align query ``x`` (T1, D) against the LANES references in ``ys`` (D, T2 * LANES).
+def _align_lanes(x, ys, gstart, gstop, weights, thresholds, out):
+    """Align the shared series ``x`` (T1, D) against the LANES series in ``ys`` (D, T2 * LANES).
 
     Writes ``out[b] = 0 + sum_g weights[g] * sqrt(C_g(T1-1, T2-1))`` for each lane b and returns False;
     returns True (``out`` untouched) when the batch was abandoned because every lane's lower bound
-    exceeded ``threshold`` (pass inf to never abandon).
+    exceeded its ``thresholds[b]`` (inf: never abandon).
     """
     t1 = x.shape[0]
     t2 = ys.shape[1] // LANES
@@ -93,22 +95,29 @@ def _align_lanes(x, ys, gstart, gstop, weights, threshold, out):
                     t = xv - yr[k]
                     c[k] = t * t  # == 0.0 + t * t
                 d += 1
-                while d + 1 < stop:  # two dims per pass: same operations, same order
+                while d + 3 < stop:  # four dims per pass: same operations, same order
                     xa = xi[d]
                     ya = strip_y[d]
                     xb = xi[d + 1]
                     yb = strip_y[d + 1]
+                    xc = xi[d + 2]
+                    yc = strip_y[d + 2]
+                    xd = xi[d + 3]
+                    yd = strip_y[d + 3]
                     for k in range(n):
                         ta = xa - ya[k]
                         tb = xb - yb[k]
-                        c[k] = (c[k] + ta * ta) + tb * tb
-                    d += 2
-                if d < stop:
+                        tc = xc - yc[k]
+                        td = xd - yd[k]
+                        c[k] = (((c[k] + ta * ta) + tb * tb) + tc * tc) + td * td
+                    d += 4
+                while d < stop:
                     xv = xi[d]
                     yr = strip_y[d]
                     for k in range(n):
                         t = xv - yr[k]
                         c[k] += t * t
+                    d += 1
             base = (i + 1) * LANES
             for g in range(n_groups):
                 q = cur[g]
@@ -128,10 +137,10 @@ def _align_lanes(x, ys, gstart, gstop, weights, threshold, out):
                     b_row[base + b] = q[n + b]
             prev, cur = cur, prev
         bnd[:, :LANES] = np.inf
-        if threshold < np.inf and j0 + w < t2:
+        if j0 + w < t2:
             alive = False
             for b in range(LANES):
-                if _strip_bound(bnd, t1, b, weights) <= threshold:
+                if thresholds[b] == np.inf or _strip_bound(bnd, t1, b, weights) <= thresholds[b]:
                     alive = True
                     break
             if not alive:
@@ -145,94 +154,60 @@ def _align_lanes(x, ys, gstart, gstop, weights, threshold, out):
 
 
 @njit(cache=True, nogil=True)
-def _interleave(refs_t, idx, count, ys):
-    """ys[d, j * LANES + b] = refs_t[idx[min(b, count - 1)], d, j] (missing lanes repeat the last)."""
+def _interleave(series, idx, count, ys):
+    """ys[d, t * LANES + b] = series[idx[min(b, count - 1)], t, d] as float64 (missing lanes repeat the last)."""
     for b in range(LANES):
-        r = refs_t[idx[min(b, count - 1)]]
-        for d in range(r.shape[0]):
-            row = r[d]
-            out = ys[d]
-            for j in range(row.shape[0]):
-                out[j * LANES + b] = row[j]
-
-
-@njit(cache=True, nogil=True)
-def _diagonal_bound(x, y, gstart, gstop, weights):
-    """Weighted cost of the diagonal path (equal lengths): an upper bound used only for ordering."""
-    value = 0.0
-    for g in range(gstart.shape[0]):
-        s = 0.0
-        for t in range(x.shape[0]):
-            for d in range(gstart[g], gstop[g]):
-                diff = x[t, d] - y[d, t]
-                s += diff * diff
-        value += weights[g] * np.sqrt(s)
-    return value
+        s = series[idx[min(b, count - 1)]]
+        for t in range(s.shape[0]):
+            row = s[t]
+            for d in range(row.shape[0]):
+                ys[d, t * LANES + b] = row[d]
 
 
 @njit(cache=True, parallel=True)
-def _min_over_candidates(queries, refs_t, indptr, indices, gstart, gstop, weights, prune):
-    n_queries = queries.shape[0]
-    best = np.full(n_queries, np.inf)
-    best_at = np.full(n_queries, -1, dtype=np.int64)
-    same_length = queries.shape[1] == refs_t.shape[2]
-    for q in prange(n_queries):
-        x = queries[q]
-        cands = indices[indptr[q]:indptr[q + 1]]
-        n_cands = cands.shape[0]
-        order = np.arange(n_cands)
-        if prune and same_length and n_cands > LANES:
-            ub = np.empty(n_cands)
-            for c in range(n_cands):
-                ub[c] = _diagonal_bound(x, refs_t[cands[c]], gstart, gstop, weights)
-            order = np.argsort(ub, kind="mergesort")
-        ys = np.empty((refs_t.shape[1], refs_t.shape[2] * LANES))
-        out = np.empty(LANES)
-        idx = np.empty(LANES, dtype=np.int64)
-        pos = np.empty(LANES, dtype=np.int64)
-        for start in range(0, n_cands, LANES):
-            count = min(LANES, n_cands - start)
-            for b in range(count):
-                pos[b] = order[start + b]
-                idx[b] = cands[pos[b]]
-            _interleave(refs_t, idx, count, ys)
-            threshold = best[q] if prune else np.inf
-            if _align_lanes(x, ys, gstart, gstop, weights, threshold, out):
-                continue
-            for b in range(count):
-                v = out[b]
-                # strictly smaller, or equal at an earlier candidate position: the first minimum wins
-                if v < best[q] or (v == best[q] and pos[b] < best_at[q]):
-                    best[q] = v
-                    best_at[q] = pos[b]
-    return best, best_at
+def _diagonal_bounds(shared, lanes, pair_s, pair_l, gstart, gstop, weights):
+    """Weighted cost of the diagonal path of every pair (equal lengths): an upper bound of its value,
+    used only to order the work."""
+    out = np.empty(pair_s.shape[0])
+    for p in prange(pair_s.shape[0]):
+        x = shared[pair_s[p]]
+        y = lanes[pair_l[p]]
+        value = 0.0
+        for g in range(gstart.shape[0]):
+            acc = 0.0
+            for t in range(x.shape[0]):
+                for d in range(gstart[g], gstop[g]):
+                    diff = x[t, d] - y[t, d]
+                    acc += diff * diff
+            value += weights[g] * np.sqrt(acc)
+        out[p] = value
+    return out
 
 
 @njit(cache=True, parallel=True)
-def _pair_values(queries, refs_t, qi, ri, gstart, gstop, weights):
-    n_pairs = qi.shape[0]
-    values = np.empty(n_pairs)
-    n_batches = (n_pairs + LANES - 1) // LANES
-    for bi in prange(n_batches):
-        ys = np.empty((refs_t.shape[1], refs_t.shape[2] * LANES))
-        out = np.empty(LANES)
+def _batched_values(shared, lanes, pair_s, pair_l, thresholds, batch_start, gstart, gstop, weights):
+    """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), computed LANES pairs at a time.
+
+    Pairs are sorted by ``pair_s``; batch b is ``batch_start[b]:batch_start[b+1]`` (one shared series,
+    at most LANES pairs). A batch whose every lane exceeds its threshold is abandoned: its values are inf.
+    """
+    values = np.full(pair_s.shape[0], np.inf)
+    for b in prange(batch_start.shape[0] - 1):
+        first = batch_start[b]
+        count = batch_start[b + 1] - first
+        ys = np.empty((lanes.shape[2], lanes.shape[1] * LANES))
         idx = np.empty(LANES, dtype=np.int64)
-        start = bi * LANES
-        # one query per batch: split the batch where the query changes
-        s = start
-        stop = min(start + LANES, n_pairs)
-        while s < stop:
-            e = s
-            while e < stop and qi[e] == qi[s]:
-                e += 1
-            count = e - s
-            for b in range(count):
-                idx[b] = ri[s + b]
-            _interleave(refs_t, idx, count, ys)
-            _align_lanes(queries[qi[s]], ys, gstart, gstop, weights, np.inf, out)
-            for b in range(count):
-                values[s + b] = out[b]
-            s = e
+        limit = np.full(LANES, np.inf)
+        out = np.empty(LANES)
+        for lane in range(count):
+            idx[lane] = pair_l[first + lane]
+            limit[lane] = thresholds[first + lane]
+        for lane in range(count, LANES):
+            limit[lane] = -np.inf  # padding lanes never keep a batch alive
+        _interleave(lanes, idx, count, ys)
+        if not _align_lanes(shared[pair_s[first]], ys, gstart, gstop, weights, limit, out):
+            for lane in range(count):
+                values[first + lane] = out[lane]
     return values
 
 
@@ -265,32 +240,52 @@ def _groups(groups, dim: int, name: str = "groups") -> tuple[np.ndarray, np.ndar
     return (np.array(starts, dtype=np.int64), np.array(stops, dtype=np.int64), np.array(weights))
 
 
-def _transposed(refs: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(np.transpose(refs, (0, 2, 1)))
+def _batches(sorted_shared: np.ndarray) -> np.ndarray:
+    """Batch boundaries over pairs sorted by shared index: runs of one shared series, LANES at a time."""
+    n = len(sorted_shared)
+    change = np.flatnonzero(np.diff(sorted_shared)) + 1
+    runs = zip(np.concatenate([[0], change]), np.concatenate([change, [n]]))
+    return np.concatenate([np.arange(a, b, LANES) for a, b in runs] + [[n]]).astype(np.int64)
+
+
+def _values(shared, lanes, pair_s, pair_l, thresholds, order_key, groups) -> np.ndarray:
+    """Values of the listed pairs (inf where abandoned), in the given pair order."""
+    if len(pair_s) == 0:
+        return np.empty(0)
+    order = np.lexsort((order_key, pair_s))
+    values = np.empty(len(pair_s))
+    values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], thresholds[order],
+                                    _batches(pair_s[order]), *groups)
+    return values
+
+
+def _check_series(queries, refs) -> tuple[np.ndarray, np.ndarray]:
+    queries = np.ascontiguousarray(queries)
+    refs = np.ascontiguousarray(refs, dtype=np.float64)
+    if queries.ndim != 3 or refs.ndim != 3 or queries.shape[2] != refs.shape[2]:
+        raise InputError("series", f"expected (Q, T1, D) and (M, T2, D), got {queries.shape} and {refs.shape}")
+    if queries.dtype not in (np.float32, np.float64):
+        queries = queries.astype(np.float64)
+    return queries, refs
 
 
 def weighted_dtw_pairs(queries: np.ndarray, refs: np.ndarray, query_index, ref_index, groups=None) -> np.ndarray:
     """Value of every listed pair: ``0 + sum_g w_g * dtw(queries[q][:, g], refs[r][:, g])``.
 
-    ``queries`` (Q, T1, D), ``refs`` (M, T2, D), float64 (no rounding is applied here);
+    ``queries`` (Q, T1, D) float32/float64 and ``refs`` (M, T2, D) (no rounding is applied here);
     ``query_index``/``ref_index`` (P,) pair lists; ``groups`` a list of (start, stop, weight), default
     one group of all dims with weight 1 (then the value is the plain DTW).
     """
-    queries = np.ascontiguousarray(queries, dtype=np.float64)
-    refs = np.ascontiguousarray(refs, dtype=np.float64)
+    queries, refs = _check_series(queries, refs)
     qi = np.asarray(query_index, dtype=np.int64)
     ri = np.asarray(ref_index, dtype=np.int64)
     if qi.shape != ri.shape or qi.ndim != 1:
         raise InputError("pairs", f"query and reference index lists differ: {qi.shape} vs {ri.shape}")
-    if queries.ndim != 3 or refs.ndim != 3 or queries.shape[2] != refs.shape[2]:
-        raise InputError("series", f"expected (Q, T1, D) and (M, T2, D), got {queries.shape} and {refs.shape}")
     if len(qi) and (qi.min() < 0 or qi.max() >= len(queries) or ri.min() < 0 or ri.max() >= len(refs)):
         raise InputError("pairs", "an index is out of range")
-    order = np.argsort(qi, kind="stable")
-    gstart, gstop, weights = _groups(groups, queries.shape[2])
-    values = np.empty(len(qi))
-    values[order] = _pair_values(queries, _transposed(refs), qi[order], ri[order], gstart, gstop, weights)
-    return values
+    groups = _groups(groups, queries.shape[2])
+    # DTW is symmetric operation for operation, so the reference can be the shared series of a batch
+    return _values(refs, queries, ri, qi, np.full(len(qi), np.inf), np.zeros(len(qi)), groups)
 
 
 def dtw(x, y) -> float:
@@ -310,35 +305,54 @@ def dtw(x, y) -> float:
 
 
 def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool = True,
-                     threads: int | None = None, transposed: bool = False) -> tuple[np.ndarray, np.ndarray]:
+                     threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each query q: the minimum over its candidates r of the weighted grouped DTW, and where.
 
-    ``queries`` (Q, T1, D) and ``refs`` (M, T2, D) float64, finite (no rounding is applied here);
-    candidates of query q are ``indices[indptr[q]:indptr[q+1]]`` (CSR), each query needs at least one.
-    Returns ``(values (Q,), position (Q,))`` where position is the index *within the candidate list* of
-    the first candidate attaining the minimum. ``prune`` enables the exact abandoning described in the
-    module docstring (same results, less work). ``threads`` caps numba's threads for this call.
-    ``transposed=True``: ``refs`` is given as (M, D, T2) (saves the transposition over repeated calls).
+    ``queries`` (Q, T1, D) float32/float64 and ``refs`` (M, T2, D), finite (no rounding is applied
+    here); candidates of query q are ``indices[indptr[q]:indptr[q+1]]`` (CSR), each query needs at
+    least one. Returns ``(values (Q,), position (Q,))`` where position is the index *within the
+    candidate list* of the first candidate attaining the minimum.
+
+    Work is batched by reference (one reference shared by LANES queries). With ``prune``, each query's
+    candidate of smallest diagonal-path cost is computed first; every other pair then carries its
+    query's value as a threshold and batches are abandoned exactly as the module docstring describes
+    (same results, less work). ``threads`` caps numba's threads for this call.
     """
-    queries = np.ascontiguousarray(queries, dtype=np.float64)
-    refs = np.ascontiguousarray(refs, dtype=np.float64)
-    refs_t = refs if transposed else _transposed(refs)
+    queries, refs = _check_series(queries, refs)
     indptr = np.asarray(indptr, dtype=np.int64)
     indices = np.asarray(indices, dtype=np.int64)
-    if queries.ndim != 3 or refs_t.ndim != 3 or queries.shape[2] != refs_t.shape[1]:
-        raise InputError("series", f"expected (Q, T1, D) and (M, T2, D), got {queries.shape} and {refs.shape}")
     if indptr.shape != (len(queries) + 1,) or indptr[0] != 0 or indptr[-1] != len(indices):
         raise InputError("candidates", "indptr must have Q + 1 entries from 0 to len(indices)")
-    empty = np.flatnonzero(np.diff(indptr) <= 0)
+    counts = np.diff(indptr)
+    empty = np.flatnonzero(counts <= 0)
     if len(empty):
         raise InputError("candidates", f"query {int(empty[0])} has no candidate")
     if len(indices) and (indices.min() < 0 or indices.max() >= len(refs)):
         raise InputError("candidates", "a candidate index is out of range")
-    gstart, gstop, weights = _groups(groups, queries.shape[2])
+    groups = _groups(groups, queries.shape[2])
+    pair_q = np.repeat(np.arange(len(queries)), counts)
+    position = np.arange(len(indices)) - indptr[pair_q]
     previous = get_num_threads()
     if threads is not None:
         set_num_threads(max(1, min(int(threads), previous)))
     try:
-        return _min_over_candidates(queries, refs_t, indptr, indices, gstart, gstop, weights, bool(prune))
+        values = np.full(len(indices), np.inf)
+        if prune:
+            equal_lengths = queries.shape[1] == refs.shape[1]
+            ub = (_diagonal_bounds(refs, queries, indices, pair_q, *groups) if equal_lengths
+                  else np.zeros(len(indices)))
+            by_bound = np.lexsort((position, ub, pair_q))
+            first = by_bound[np.concatenate([[0], np.flatnonzero(np.diff(pair_q[by_bound])) + 1])]
+            values[first] = _values(refs, queries, indices[first], pair_q[first], np.full(len(first), np.inf),
+                                    np.zeros(len(first)), groups)
+            rest = np.setdiff1d(np.arange(len(indices)), first)
+            limit = values[first][pair_q[rest]]  # first holds one pair per query, in query order
+            # hopeless pairs (diagonal bound far above the query's value) share batches: more abandoning
+            values[rest] = _values(refs, queries, indices[rest], pair_q[rest], limit, -ub[rest] / limit, groups)
+        else:
+            values = _values(refs, queries, indices, pair_q, values, np.zeros(len(indices)), groups)
     finally:
         set_num_threads(previous)
+    best = np.minimum.reduceat(values, indptr[:-1])
+    hit = np.where(values == best[pair_q], position, np.iinfo(np.int64).max)
+    return best, np.minimum.reduceat(hit, indptr[:-1])
