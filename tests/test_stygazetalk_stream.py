@@ -102,6 +102,10 @@ def test_sampled_decoding_is_seeded_per_stream_and_causal(weights, clip):
     c = stream_agent(_model(weights, decoding="sample"), clip, AGENT, ProtocolConfig(context=2, seed=6)).motion
     mean = stream_agent(_model(weights), clip, AGENT, cfg).motion
     assert np.array_equal(a, b) and not np.allclose(a[50:], c[50:]) and not np.allclose(a[50:], mean[50:])
+    # default sample_dims="gaze": the first generated frame differs from the mean only in the eye angles
+    assert np.allclose(a[50, :3], mean[50, :3], atol=1e-6) and not np.allclose(a[50, 3:], mean[50, 3:])
+    every = stream_agent(_model(weights, decoding="sample", sample_dims="all"), clip, AGENT, cfg).motion
+    assert not np.allclose(every[50, :3], mean[50, :3])
     check_causal(lambda: _model(weights, decoding="sample"), clip, AGENT, cfg, turn=4)
 
 

@@ -18,13 +18,13 @@ from models.stygazetalk.system import StyGazeTalkSystem
 from models.stygazetalk.train_style import StyleModel
 
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
-SHIPPED_MODEL = WEIGHTS_DIR / "stygazetalk-tiny-se64-vel.pt"  # the SE-64-VEL variant (best paper SimScore)
+SHIPPED_MODEL = WEIGHTS_DIR / "stygazetalk-tiny-se64-vel-x1.pt"  # SE-64-VEL weights, sampled eye decoding (X1)
 SHIPPED_STYLE_ENCODER = WEIGHTS_DIR / "style-encoder-tiny-se64.pt"
 STYLE_MODEL_NAME = "stygazetalk-style"
 MODEL_NAME = "stygazetalk"
 REPRODUCE = ("dyadbench train stygazetalk-style --config tiny-se64 --out runs/sgt/se64.pt && "
-             "dyadbench train stygazetalk --config tiny-se64-vel --style-encoder runs/sgt/se64.pt "
-             "--out runs/sgt/tiny-se64-vel.pt")
+             "dyadbench train stygazetalk --config tiny-se64-vel-x1 --style-encoder runs/sgt/se64.pt "
+             "--out runs/sgt/tiny-se64-vel-x1.pt")
 
 
 def save_style_model(path: str | Path, model: StyleModel, meta: dict) -> Path:

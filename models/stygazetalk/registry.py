@@ -1,9 +1,9 @@
 """``build_stygazetalk``: the registered factory of the ``stygazetalk`` model (gaze7 layout, streaming).
 
 - Weights: ``options.weights`` (a stage-2 checkpoint) or the shipped tiny SE-64-VEL checkpoint.
-- ``options.extra["seed_window"]``: ``"gt"`` or ``"mpgw-sim"`` overrides the checkpoint's seed (D30).
-- ``options.extra["decoding"]``: ``"mean"`` (the paper's deterministic model) or ``"sample"`` (X1)
-  overrides the checkpoint's decoding.
+- Inference-only overrides of the checkpoint's config from ``options.extra``: ``seed_window``
+  (``"gt"`` | ``"mpgw-sim"``, D30), ``decoding`` (``"mean"``: the paper's deterministic model |
+  ``"sample"``: X1), ``sample_temperature``, ``sample_dims`` (``"gaze"`` | ``"all"``).
 - Style transfer: ``options.extra["style_from"]`` — a reference session's motion (T, 7) in degrees,
   or the path of a gaze-layout session ``.npz`` (key ``motion``). Its style vector (mean SE embedding
   over its windows) replaces SE(last M frames) in every window.
@@ -17,25 +17,21 @@ from pathlib import Path
 import numpy as np
 
 from dyadbench.datasets.gaze import keep_mask, read_session
-from dyadbench.errors import ConfigError, InputError
+from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
 from models.stygazetalk.checkpoints import SHIPPED_MODEL, load_system
 from models.stygazetalk.stream import StyGazeTalkStream
 
 VERSION = "1"
+INFERENCE_OVERRIDES = ("seed_window", "decoding", "sample_temperature", "sample_dims")
 
 
 def build_stygazetalk(options: ModelOptions) -> StyGazeTalkStream:
     path = Path(options.weights) if options.weights is not None else SHIPPED_MODEL
     system, meta = load_system(path)
-    seed_window = options.extra.get("seed_window")
-    if seed_window is not None:  # e.g. "mpgw-sim": the SE-64 weights with a corrupted seed (D30)
-        if seed_window not in ("gt", "mpgw-sim"):
-            raise ConfigError(f"seed_window must be gt or mpgw-sim, got {seed_window!r}")
-        system.cfg = replace(system.cfg, seed_window=seed_window)
-    decoding = options.extra.get("decoding")
-    if decoding is not None:  # "sample": the extension X1 with the same weights
-        system.cfg = replace(system.cfg, decoding=decoding).validate()
+    overrides = {k: options.extra[k] for k in INFERENCE_OVERRIDES if k in options.extra}
+    if overrides:  # inference-only settings, e.g. the MPGW-sim seed or sampled decoding with these weights
+        system.cfg = replace(system.cfg, **overrides).validate()
     style_from = options.extra.get("style_from")
     style, style_desc = None, None
     if style_from is not None:

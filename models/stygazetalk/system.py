@@ -60,6 +60,8 @@ class StyGazeTalkSystem(nn.Module):
         if rng is None:
             raise ValueError(f"{self.cfg.name} samples its frames: pass a seeded torch.Generator")
         pool = self.residual_pool * self.cfg.sample_temperature
+        if self.cfg.sample_dims == "gaze":  # the head keeps its mean (smooth, speech-locked)
+            pool = torch.cat([torch.zeros_like(pool[:, :3]), pool[:, 3:]], dim=1)
 
         def draw(mean: torch.Tensor) -> torch.Tensor:
             idx = torch.randint(pool.shape[0], mean.shape[:-1], generator=rng)
