@@ -3,9 +3,10 @@
 - ``mime``: the partner's motion of the current turn, frame for frame (zero lag).
 - ``lagged-mirror``: the partner's motion delayed by ``LAG_SECONDS`` = 0.48 s (12 frames at 25 fps),
   the order of human facial mimicry delays and the expression-mirroring lag of the embedded corpus
-  (:mod:`dyadbench.synth.corpus`); ``ModelOptions.extra["lag_seconds"]`` overrides it. The model keeps a delay line of the last partner frames it has been
-  shown in earlier turns of the stream (its own memory, not protocol history, so its output does not
-  depend on the context length n); before the first partner frame it holds that first frame.
+  (:mod:`dyadbench.synth.corpus`); ``ModelOptions.extra["lag_seconds"]`` overrides it. The model keeps a
+  delay line of the last partner frames it has been shown in earlier turns of the stream (its own memory,
+  not protocol history, so its output does not depend on the context length n); before the first partner
+  frame it holds that first frame.
 
 Both need a partner: single-participant (gaze–head) sessions are refused with an InputError. Both
 implement the streaming and the offline interface with identical outputs.

@@ -44,7 +44,7 @@ def partner_features(user_motion: np.ndarray, user_audio: np.ndarray, sample_rat
                            mels.mean(axis=1), mels.std(axis=1)], axis=1).astype(np.float64)
 
 
-def _turns(array: np.ndarray, num_turns: int, per_turn: int) -> np.ndarray:
+def split_turns(array: np.ndarray, num_turns: int, per_turn: int) -> np.ndarray:
     """(num_turns, per_turn, ...) view of the first num_turns·per_turn rows, zero-padded if short."""
     need = num_turns * per_turn
     if array.shape[0] < need:
@@ -70,9 +70,9 @@ def build_index(source: ClipSource, turn_seconds: float) -> dict[str, np.ndarray
             continue
         for agent in clip.participants:
             user = clip.partner_of(agent.name)
-            features.append(partner_features(_turns(np.asarray(user.motion, np.float64), K, F),
-                                             _turns(np.asarray(user.audio, np.float32), K, S), sample_rate, fps))
-            targets.append(_turns(np.asarray(agent.motion, np.float32), K, F))
+            features.append(partner_features(split_turns(np.asarray(user.motion, np.float64), K, F),
+                                             split_turns(np.asarray(user.audio, np.float32), K, S), sample_rate, fps))
+            targets.append(split_turns(np.asarray(agent.motion, np.float32), K, F))
     if not features:
         raise InputError(f"{source.dataset}/{source.split}", "no whole turns in the train clips")
     raw = np.concatenate(features)
@@ -128,7 +128,7 @@ class NearestTurnRetrieval(StreamingModel, OfflineModel):
                      agent_audio: np.ndarray) -> np.ndarray:
         self._check(ctx)
         K, F = ctx.num_turns, ctx.frames_per_turn
-        turns = self._retrieve(_turns(user_motion, K, F), _turns(user_audio, K, ctx.samples_per_turn),
+        turns = self._retrieve(split_turns(user_motion, K, F), split_turns(user_audio, K, ctx.samples_per_turn),
                                ctx.sample_rate, ctx.fps).reshape(K * F, -1)
         tail = user_motion.shape[0] - K * F
         return np.concatenate([turns, np.repeat(turns[-1:], tail, axis=0)]) if tail else turns

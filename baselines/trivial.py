@@ -72,9 +72,10 @@ def _fitted(name: str, options: ModelOptions) -> tuple[dict[str, np.ndarray], di
     source = open_train(options.train_split, name)
     stats, digest = cached_fit("frame-stats", FIT_VERSION, source, frame_statistics)
     layout = options.extra.get("layout", "flame56")
-    if stats["mean"].shape[0] != LAYOUTS[layout].dim:
-        raise InputError(f"{source.dataset}/{source.split}", f"{name}: train motion has {stats['mean'].shape[0]} "
-                                                              f"dims, the evaluated layout {layout} has {LAYOUTS[layout].dim}")
+    dims, expected = stats["mean"].shape[0], LAYOUTS[layout].dim
+    if dims != expected:
+        raise InputError(f"{source.dataset}/{source.split}",
+                         f"{name}: train motion has {dims} dims, the evaluated layout {layout} has {expected}")
     config = {"train": f"{source.dataset}/{source.split}", "train_frames": int(stats["frames"]),
               "median_stride": int(stats["median_stride"])}
     return stats, {"weights_digest": digest, "config": config}

@@ -126,7 +126,8 @@ def test_retrieval_index_is_built_for_the_protocol_turn_length(train):
     with pytest.raises(ConfigError, match="25-frame turns"):
         stream_agent(model, make_clip("x", 3.0), "speaker1", ProtocolConfig(turn_seconds=0.4))
     short = build_nn_retrieval(_opts(train, turn_seconds=0.4))
-    assert stream_agent(short, make_clip("x", 3.0), "speaker1", ProtocolConfig(turn_seconds=0.4)).motion.shape == (70, 56)
+    out = stream_agent(short, make_clip("x", 3.0), "speaker1", ProtocolConfig(turn_seconds=0.4))
+    assert out.motion.shape == (70, 56)
 
 
 def test_fits_are_cached_by_the_split_digest(train, monkeypatch, tmp_path):
