@@ -235,3 +235,17 @@ def test_parameter_counts_match_the_spec_hand_counts():
     base = MotionGenerator(get_generator_config("base-se64"), 768)
     assert count(base.core) + count(base.head) == 1_644_544 + 1_536 + 1_799
     assert np.isclose(count(base), 1.75e6, rtol=0.01)
+
+
+def test_initial_weights_depend_only_on_the_config_seed():
+    from models.stygazetalk.system import StyGazeTalkSystem
+
+    cfg, se_cfg = get_generator_config("tiny-se64"), get_style_config("tiny-se64")
+    torch.manual_seed(1)
+    a = StyGazeTalkSystem(cfg, se_cfg).state_dict()
+    torch.manual_seed(2)
+    torch.randn(10)
+    b = StyGazeTalkSystem(cfg, se_cfg).state_dict()
+    c = StyGazeTalkSystem(replace(cfg, seed=1), se_cfg).state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not torch.equal(a["generator.head.weight"], c["generator.head.weight"])

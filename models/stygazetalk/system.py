@@ -11,6 +11,8 @@ import numpy as np
 import torch
 from torch import nn
 
+from dyadbench.seeding import derive_seed
+
 from models.stygazetalk.audio import HOP, feature_dim, raw_features
 from models.stygazetalk.config import MOTION_DIM, GeneratorConfig, StyleEncoderConfig
 from models.stygazetalk.generator import MotionGenerator
@@ -28,8 +30,10 @@ class StyGazeTalkSystem(nn.Module):
         self.cfg, self.se_cfg = cfg, se_cfg if cfg.style else None
         self.motion_norm = ZScore(MOTION_DIM)
         self.audio_norm = ZScore(feature_dim(cfg))
-        self.style_encoder = StyleEncoder(se_cfg) if cfg.style else None
-        self.generator = MotionGenerator(cfg, feature_dim(cfg))
+        with torch.random.fork_rng():  # initial weights depend on the config seed only
+            torch.manual_seed(derive_seed("stygazetalk-init", cfg.seed))
+            self.style_encoder = StyleEncoder(se_cfg) if cfg.style else None
+            self.generator = MotionGenerator(cfg, feature_dim(cfg))
         # teacher-forced validation residuals (target − output, normalised units) for sampled decoding
         # (X1); fitted after training
         self.register_buffer("residual_pool", torch.zeros(RESIDUAL_POOL, MOTION_DIM))
