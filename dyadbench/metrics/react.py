@@ -21,6 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit, prange
 from tqdm import tqdm
 
 from dyadbench.errors import InputError
@@ -187,15 +188,32 @@ def fr_dist(p, lst, indptr, indices, *, prune: bool = True, threads: int | None 
     return float(np.mean(_sum_over_reactions(per)))
 
 
+@njit(cache=True, parallel=True)
+def _ordered_pair_sq_sum(stack):
+    out = np.empty(stack.shape[0])
+    n = stack.shape[1]
+    for b in prange(stack.shape[0]):
+        total = 0.0
+        for f in range(stack.shape[2]):
+            origin = np.float64(stack[b, 0, f])
+            mean = 0.0
+            for a in range(n):
+                mean += np.float64(stack[b, a, f]) - origin
+            mean /= n
+            for a in range(n):
+                dev = (np.float64(stack[b, a, f]) - origin) - mean
+                total += dev * dev
+        out[b] = 2.0 * n * total
+    return out
+
+
 def ordered_pair_sq_sum(stack: np.ndarray) -> np.ndarray:
     """sum over ordered pairs a != b of |s_a - s_b|^2 along axis 1 of ``stack`` (B, n, F) -> (B,).
 
     Uses the identity sum_{a != b} |s_a - s_b|^2 = 2 n sum_a |s_a - mean|^2 on values shifted by s_0
-    (exactly 0 when all members are equal).
+    (exactly 0 when all members are equal), in float64, one pass per sample.
     """
-    shifted = stack.astype(np.float64) - stack[:, :1].astype(np.float64)
-    dev = shifted - shifted.mean(axis=1, keepdims=True)
-    return 2.0 * stack.shape[1] * np.einsum("bnf,bnf->b", dev, dev)
+    return _ordered_pair_sq_sum(np.ascontiguousarray(stack))
 
 
 def fr_div_per_sample(p) -> np.ndarray:
