@@ -94,3 +94,17 @@ def test_mpgw_seed_corrupts_only_the_eyes_deterministically_and_streams_per_turn
     per_turn = np.concatenate([mpgw_seed(seed[lo:lo + 25], 4.0, 2.0, 0, "clip", offset=lo, total=50)
                                for lo in (0, 25)])
     assert np.array_equal(per_turn, out)
+
+
+def test_wav2vec_features_need_local_weights_and_say_so():
+    from dataclasses import replace
+
+    from dyadbench.errors import ConfigError
+    from models.stygazetalk.audio import feature_dim
+    from models.stygazetalk.config import get_generator_config
+
+    cfg = replace(get_generator_config("tiny-se64"), audio_features="wav2vec")
+    with pytest.raises(ConfigError, match="wav2vec"):
+        feature_dim(cfg)
+    with pytest.raises(ConfigError, match="wav2vec"):
+        feature_dim(replace(cfg, wav2vec_path="/nonexistent/wav2vec2-base-960h"))
