@@ -15,6 +15,7 @@ from pathlib import Path
 
 import click
 import numpy as np
+import torch
 
 from dyadbench import atomic
 from dyadbench.arrays import load_npy
@@ -23,8 +24,11 @@ from dyadbench.protocol.runner import open_dataset_split
 from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import l2l
 from dyadbench.scoring.report import ScoreItem
+from models.sfms.bundle import load_tokenizer
+from models.sfms.tokenizer import SFMSTokenizer
 
-COLUMNS = ("fd_exp", "fd_pose", "pfd_exp", "pfd_pose")
+HEADERS = {"fd_exp": "FD exp", "fd_pose": "FD rot", "pfd_exp": "P-FD exp", "pfd_pose": "P-FD rot"}
+COLUMNS = tuple(HEADERS)
 
 
 def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Path | None = None
@@ -56,9 +60,22 @@ def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Pat
     return items
 
 
+@torch.no_grad()
+def reconstruction_items(tokenizer: SFMSTokenizer, items: list[ScoreItem]) -> list[ScoreItem]:
+    """The same items with ``pred`` = the tokenizer's reconstruction of the ground truth (whole 48-frame
+    windows): what SFMS would output if its predictor recovered the ground-truth classes exactly."""
+    w, out = tokenizer.cfg.window, []
+    for item in items:
+        n = (len(item.gt) // w) * w
+        gt = torch.as_tensor(np.asarray(item.gt[:n], np.float32))
+        windows = tokenizer.normalise(gt.reshape(-1, w, gt.shape[1]))
+        rec = tokenizer.denormalise(tokenizer.reconstruct(windows)).reshape(n, -1).numpy()
+        out.append(ScoreItem(item.stem, rec, item.gt[:n], item.partner[:n], fps=item.fps))
+    return out
+
+
 def table(rows: list[dict]) -> str:
-    head = "| model | context n | predictions | " + " | ".join(c.replace("_", " ").upper().replace("POSE", "rot")
-                                                         for c in COLUMNS) + " |"
+    head = "| model | context n | predictions | " + " | ".join(HEADERS.values()) + " |"
     lines = [head, "|" + "---|" * (3 + len(COLUMNS))]
     for r in sorted(rows, key=lambda r: r["fd_exp"]):
         values = " | ".join(f"{r[c]:.4f}" if math.isfinite(r[c]) else "–" for c in COLUMNS)
@@ -73,17 +90,31 @@ def table(rows: list[dict]) -> str:
               help="Dataset root the runs were evaluated on (default: the embedded synthetic corpus).")
 @click.option("--clips", type=click.IntRange(min=1), default=None,
               help="Score only the first N clips (sorted ids) of every run: a common subset.")
+@click.option("--tokenizer-bound", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
+              help="SFMS checkpoint: add a row scoring its tokenizer's reconstruction of the ground truth "
+                   "(a perfect-predictor reference), on the first run's items.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Markdown file to write the table to (atomically).")
-def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, out: Path | None) -> None:
+def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, tokenizer_bound: Path | None,
+         out: Path | None) -> None:
     """Re-score RUNS (folders written by `dyadbench eval --out`) with the L2L-line suite."""
     rows = []
+
+    def add(name: str, context: object, items: list[ScoreItem]) -> None:
+        report = l2l.score_arrays(items, seed=seed)
+        rows.append({"model": name, "context": context, "items": report.n_scored,
+                     **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
+        click.echo(f"{name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)
+
+    first_items = None
     for run in runs:
         result = load_result(run / "result.json")
-        report = l2l.score_arrays(run_items(result, run, clips, data), seed=seed)
-        rows.append({"model": result.model.name, "context": result.protocol.context, "items": report.n_scored,
-                     **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
-        click.echo(f"{result.model.name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)
+        items = run_items(result, run, clips, data)
+        first_items = first_items or items
+        add(result.model.name, result.protocol.context, items)
+    if tokenizer_bound is not None:
+        add("sfms tokenizer reconstruction of the ground truth (perfect-predictor reference)", "–",
+            reconstruction_items(load_tokenizer(tokenizer_bound), first_items))
     text = table(rows)
     click.echo(text)
     if out is not None:

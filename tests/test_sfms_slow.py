@@ -1,0 +1,37 @@
+"""Slow SFMS checks (``pytest -m slow``): short real training runs on generated clips (spec §7)."""
+
+import numpy as np
+import pytest
+import torch
+
+from dyadbench.synth.corpus import make_clips
+from models.sfms.config import predictor_preset, tokenizer_preset
+from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed, row_stats
+from models.sfms.train_predictor import fit_predictor
+from models.sfms.train_tokenizer import eval_windows, fit_tokenizer
+
+pytestmark = pytest.mark.slow
+
+
+def test_tiny_pipeline_learns_keyframes_and_beats_the_unigram_predictor():
+    torch.set_num_threads(1)
+    clips = make_clips("train", 24, duration_s=20.0)
+    motion = clip_motions(clips)
+    mean, std = motion_stats(motion)
+    norm = [(a - mean) / std for a in motion]
+    tok_cfg = tokenizer_preset("tiny")
+    tok, hist = fit_tokenizer(tok_cfg, norm[:40], eval_windows(norm[40:], 48), motion_mean=mean,
+                              motion_std=std, seed=0, progress=False)
+    first = np.mean([s["motion"] for s in hist["steps"][:10]])
+    last = np.mean([s["motion"] for s in hist["steps"][-10:]])
+    assert last < 0.8 * first
+    classes, mask, _ = tok.encode(torch.as_tensor(eval_windows(norm[40:], 48)[:16]))
+    assert (mask.sum(1) == tok_cfg.keyframes).all()
+
+    cfg = predictor_preset("tiny")
+    raw = directed_clips(clips, cfg)
+    a_mean, a_std = row_stats(raw[:40])
+    data = normalise_directed(raw, mean, std, a_mean, a_std)
+    model, phist = fit_predictor(cfg, tok, data[:40], data[40:], audio_mean=a_mean, audio_std=a_std, seed=0,
+                                 val_windows=256, progress=False)
+    assert phist["best_val_ce"] < phist["val"][-1]["unigram_ce"]
