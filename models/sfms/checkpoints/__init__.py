@@ -1,0 +1,1 @@
+"""Shipped SFMS checkpoint (package data): ``sfms-tiny.pt``, the tiny tokenizer + predictor."""
