@@ -172,3 +172,15 @@ def test_training_steps_reduce_the_loss(variant):
         loss.backward()
         opt.step()
     assert loss_at_fixed_seed() < 0.8 * before
+
+
+def test_sampling_clamps_the_variance_interpolation_to_its_range():
+    d = GaussianDiffusion.respaced(1000, 5)
+    xt, t = torch.zeros(3, 56), torch.full((3,), 1)
+    x0 = torch.zeros(3, 56)
+    beyond = d.p_mean_logvar(torch.cat([x0, torch.full((3, 56), 5.0)], -1), xt, t, clamp_variance=True)[1]
+    edge = d.p_mean_logvar(torch.cat([x0, torch.ones(3, 56)], -1), xt, t)[1]
+    torch.testing.assert_close(beyond, edge)  # clamped v = 1: log variance = log beta_t
+    torch.testing.assert_close(edge, torch.full_like(edge, math.log(d.betas[1])))
+    free = d.p_mean_logvar(torch.cat([x0, torch.full((3, 56), 5.0)], -1), xt, t)[1]
+    assert (free > edge).all()

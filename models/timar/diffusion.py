@@ -12,7 +12,7 @@ The arithmetic follows the improved-DDPM code used by masked autoregression with
   the bound trains only the variance;
 - sampling uses a respaced process: ``space_timesteps(1000, "5")`` keeps original steps
   0, 250, 500, 749, 999, which are fed to the network; ancestral DDPM steps, temperature scaling the
-  noise, no clipping of x0.
+  noise, no clipping of x0; v clamped to [-1, 1] by default (see :meth:`GaussianDiffusion.sample`).
 """
 
 from __future__ import annotations
@@ -107,10 +107,16 @@ class GaussianDiffusion:
     def _posterior_mean(self, x0: torch.Tensor, xt: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
         return self._take("posterior_coef1", t) * x0 + self._take("posterior_coef2", t) * xt
 
-    def p_mean_logvar(self, output: torch.Tensor, xt: torch.Tensor, t: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
-        """(posterior mean, log variance, x0 prediction) from the network's 2C-channel output."""
+    def p_mean_logvar(self, output: torch.Tensor, xt: torch.Tensor, t: torch.Tensor,
+                      clamp_variance: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+        """(posterior mean, log variance, x0 prediction) from the network's 2C-channel output.
+
+        ``clamp_variance`` keeps v in [-1, 1], i.e. the variance between β̃_t and β_t (used in sampling).
+        """
         channels = xt.shape[-1]
         x0, v = output[..., :channels], output[..., channels:]
+        if clamp_variance:
+            v = v.clamp(-1.0, 1.0)
         frac = (v + 1.0) / 2.0
         log_var = frac * self._take("log_betas", t) + (1.0 - frac) * self._take("posterior_log_var", t)
         return self._posterior_mean(x0, xt, t), log_var, x0
@@ -129,16 +135,22 @@ class GaussianDiffusion:
     @torch.no_grad()
     def sample(self, denoise: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], shape: tuple[int, ...],
                generator: torch.Generator, temperature: float = 1.0,
-               device: torch.device | str = "cpu") -> torch.Tensor:
+               device: torch.device | str = "cpu", clamp_variance: bool = True) -> torch.Tensor:
         """Ancestral sampling from pure noise; ``denoise(x_t, network_timesteps)`` returns 2C channels.
 
         All noise comes from ``generator`` in a fixed order (x_T first, then one draw per step with
         t > 0), so equal seeds give equal samples whatever the caller's cache state.
+
+        ``clamp_variance`` (default True) keeps v in [-1, 1]. The released code does not clamp; with a
+        well-trained head v stays in that range and clamping changes nothing, but an under-trained head
+        can predict v far outside it, and in the respaced process (where β and β̃ differ by orders of
+        magnitude) the extrapolated variance explodes (σ of 10^6 seen at the 250 → 0 step).
         """
         x = torch.randn(shape, generator=generator).to(device)
         for i in reversed(range(self.num_steps)):
             t = torch.full(shape[:-1], i, dtype=torch.long, device=device)
-            mean, log_var, _ = self.p_mean_logvar(denoise(x, self.timestep_map.to(device)[t]), x, t)
+            mean, log_var, _ = self.p_mean_logvar(denoise(x, self.timestep_map.to(device)[t]), x, t,
+                                                  clamp_variance=clamp_variance)
             if i > 0:
                 noise = torch.randn(shape, generator=generator).to(device)
                 x = mean + torch.exp(0.5 * log_var) * noise * temperature

@@ -230,11 +230,13 @@ class TimarModel(nn.Module):
     # --- sampling ------------------------------------------------------------------------------------
     @torch.no_grad()
     def sample_frames(self, cond: torch.Tensor, generator: torch.Generator, cfg_scale: float = 1.0,
-                      temperature: float = 1.0) -> torch.Tensor:
+                      temperature: float = 1.0, clamp_variance: bool = True) -> torch.Tensor:
         """Agent frames (F, 56) from conditions (1, F, D), or (2, F, D) = (conditional, unconditional).
 
         With guidance the x0 prediction is ``u + s·(c − u)`` and the variance that of the
         conditional branch; with one condition row (s = 1) the head runs once per step.
+        ``clamp_variance`` keeps the variance interpolation in its range [-1, 1] (see
+        :meth:`GaussianDiffusion.sample`).
         """
         frames = cond.shape[1]
         channels = self.cfg.motion_dim
@@ -249,7 +251,8 @@ class TimarModel(nn.Module):
                 guided = u[:, :channels] + cfg_scale * (c[:, :channels] - u[:, :channels])
                 return torch.cat([guided, c[:, channels:]], dim=-1)
 
-        return self.sample_diffusion.sample(denoise, (frames, channels), generator, temperature, cond.device)
+        return self.sample_diffusion.sample(denoise, (frames, channels), generator, temperature, cond.device,
+                                            clamp_variance)
 
 
 def count_parameters(cfg: TimarConfig) -> int:

@@ -4,8 +4,9 @@ Both load a checkpoint written by ``dyadbench train timar`` / ``timar-stream``: 
 given, else the tiny checkpoint shipped with the package (``models/timar/checkpoints/``). Options:
 ``cfg_scale`` (classifier-free guidance, 1 = off as in the published runs), ``seed`` (per-stream
 seeds come from the protocol), ``device``, and in ``extra``: ``cache`` (default True; False re-encodes
-as the released implementation does), ``temperature`` (default 1), ``wav2vec_weights`` (local folder of
-the wav2vec 2.0 model for configurations that use it).
+as the released implementation does), ``temperature`` (default 1), ``clamp_variance`` (default True;
+False samples exactly as the released code, see :meth:`models.timar.diffusion.GaussianDiffusion.sample`),
+``wav2vec_weights`` (local folder of the wav2vec 2.0 model for configurations that use it).
 """
 
 from __future__ import annotations
@@ -47,14 +48,16 @@ def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | 
     model, path, meta = load_timar(name, options.weights)
     use_cache = bool(options.extra.get("cache", True))
     temperature = float(options.extra.get("temperature", 1.0))
+    clamp_variance = bool(options.extra.get("clamp_variance", True))
     info = ModelInfo(name=name, version=str(meta.get("dyadbench_version", "1")), weights_digest=file_digest(path),
                      weights_path=str(path),
                      config={**model.cfg.to_dict(), "cfg_scale": options.cfg_scale, "cache": use_cache,
-                             "temperature": temperature, "data_digest": meta.get("data_digest"),
+                             "temperature": temperature, "clamp_variance": clamp_variance,
+                             "data_digest": meta.get("data_digest"),
                              "train_epochs": meta.get("epoch"), "train_command": meta.get("command")})
     frontend = make_frontend(model.cfg, wav2vec_weights=options.extra.get("wav2vec_weights"))
     return stream_cls(model, frontend, info, cfg_scale=options.cfg_scale, use_cache=use_cache,
-                      temperature=temperature, device=options.device)
+                      temperature=temperature, clamp_variance=clamp_variance, device=options.device)
 
 
 def build_timar(options: ModelOptions) -> FaithfulStream:

@@ -33,13 +33,15 @@ from models.timar.model import TimarModel
 
 class _TimarStreamBase(StreamingModel):
     def __init__(self, model: TimarModel, frontend: SpeechFrontend, info: ModelInfo, *, cfg_scale: float = 1.0,
-                 use_cache: bool = True, temperature: float = 1.0, device: str = "cpu"):
+                 use_cache: bool = True, temperature: float = 1.0, clamp_variance: bool = True,
+                 device: str = "cpu"):
         self.model = model.eval().to(device)
         self.frontend = frontend
         self.info = info
         self.cfg_scale = float(cfg_scale)
         self.use_cache = use_cache
         self.temperature = temperature
+        self.clamp_variance = clamp_variance
         self.device = torch.device(device)
         self._generator = torch.Generator()
         self._context = 0
@@ -91,7 +93,7 @@ class _TimarStreamBase(StreamingModel):
     def _sample(self, cond: torch.Tensor) -> np.ndarray:
         """Frames (F, 56) from the current turn's features (branches, 1, L, D)."""
         z = cond[:, 0, self.model.agent_slice]
-        x = self.model.sample_frames(z, self._generator, self.cfg_scale, self.temperature)
+        x = self.model.sample_frames(z, self._generator, self.cfg_scale, self.temperature, self.clamp_variance)
         return x.cpu().numpy().astype(np.float32)
 
 
