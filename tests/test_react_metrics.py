@@ -116,7 +116,7 @@ def test_diversity_properties(seed, r, n):
 
 # --- against the straightforward loops ----------------------------------------------------------------
 
-@pytest.mark.parametrize("seed,size", [(10, dict(n=5, r=2, t=40)),
+@pytest.mark.parametrize("seed,size", [(10, dict(n=5, r=2, t=60)),
                                        pytest.param(11, dict(n=8, r=3, t=90), marks=pytest.mark.slow)])
 def test_every_metric_matches_the_loop_reference(seed, size):
     p, listener, speaker, s = problem(seed, **size)

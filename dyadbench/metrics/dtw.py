@@ -348,7 +348,9 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
             rest = np.setdiff1d(np.arange(len(indices)), first)
             limit = values[first][pair_q[rest]]  # first holds one pair per query, in query order
             # hopeless pairs (diagonal bound far above the query's value) share batches: more abandoning
-            values[rest] = _values(refs, queries, indices[rest], pair_q[rest], limit, -ub[rest] / limit, groups)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                hopeless = np.nan_to_num(-ub[rest] / limit)
+            values[rest] = _values(refs, queries, indices[rest], pair_q[rest], limit, hopeless, groups)
         else:
             values = _values(refs, queries, indices, pair_q, values, np.zeros(len(indices)), groups)
     finally:

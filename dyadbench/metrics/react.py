@@ -75,7 +75,7 @@ def _as_float32(array, name: str, ndim: int) -> np.ndarray:
         raise InputError(name, f"expected {want}, got shape {a.shape}")
     if a.dtype.kind not in "fiu":
         raise InputError(name, f"expected real numbers, got dtype {a.dtype}")
-    a = a.astype(np.float32)
+    a = a.astype(np.float32, copy=False)
     bad = a.size - int(np.count_nonzero(np.isfinite(a)))
     if bad:
         first = np.argwhere(~np.isfinite(a))[0]
@@ -263,7 +263,7 @@ def fr_syn_offsets(p, sp, *, all_reactions: bool) -> np.ndarray:
     if not all_reactions:
         return tlcc_offsets(p[:, 0], sp)
     n, r = p.shape[:2]
-    return tlcc_offsets(p.reshape(n * r, *p.shape[2:]), np.repeat(sp, r, axis=0)).reshape(n, r)
+    return tlcc_offsets(p.reshape(n * r, *p.shape[2:]), sp, np.repeat(np.arange(n), r)).reshape(n, r)
 
 
 def fr_syn(p, sp, *, all_reactions: bool = False) -> float:

@@ -101,12 +101,14 @@ def offsets_from_correlations(r: np.ndarray) -> np.ndarray:
     return np.abs(MAX_LAG - torch.argmax(curves, dim=-1).numpy()).astype(np.int64)
 
 
-def tlcc_offsets(pred: np.ndarray, speaker: np.ndarray) -> np.ndarray:
-    """Offsets (M,) in frames of predictions (M, T, C) against their speakers (M, T, C)."""
+def tlcc_offsets(pred: np.ndarray, speaker: np.ndarray, speaker_index: np.ndarray | None = None) -> np.ndarray:
+    """Offsets (M,) in frames of predictions (M, T, C) against their speakers: ``speaker`` (M, T, C), or
+    (S, T, C) with ``speaker_index`` (M,) naming each prediction's speaker (no copy of repeated speakers)."""
+    index = np.arange(len(pred)) if speaker_index is None else np.asarray(speaker_index)
     out = np.empty(len(pred), dtype=np.int64)
     for start in range(0, len(pred), CHUNK):
         stop = start + CHUNK
-        out[start:stop] = offsets_from_correlations(lagged_correlations(pred[start:stop], speaker[start:stop]))
+        out[start:stop] = offsets_from_correlations(lagged_correlations(pred[start:stop], speaker[index[start:stop]]))
     return out
 
 
