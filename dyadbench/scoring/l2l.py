@@ -60,8 +60,8 @@ def _split_valid(stems, preds, gts, speakers):
             excluded.append({"clip": stem, "reason": f"{bad} NaN/inf values in the prediction"})
         else:
             keep.append(i)
-    pick = lambda xs: [xs[i] for i in keep]  # noqa: E731
-    return pick(stems), pick(preds), pick(gts), pick(speakers), excluded
+    stems, preds, gts, speakers = ([xs[i] for i in keep] for xs in (stems, preds, gts, speakers))
+    return stems, preds, gts, speakers, excluded
 
 
 def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0,

@@ -121,6 +121,24 @@ def _cut(array: np.ndarray, name: str, shape_tail: tuple[int, ...], frames: int)
     return array[..., :frames, :]
 
 
+class _KeyedPredictions:
+    """One (R, T, 25) array per speaker path: the members of an ``.npz`` or the ``.npy`` files of a folder."""
+
+    def __init__(self, pred: Path, keys: list[str] | None = None):
+        self.pred = pred
+        self.archive = keys is not None
+        if self.archive:
+            self.keys = set(keys)
+        else:
+            self.keys = {f.relative_to(pred).with_suffix("").as_posix() for f in pred.rglob("*.npy")}
+
+    def name(self, key: str) -> str:
+        return f"{self.pred}[{key}]" if self.archive else str(self.pred / f"{key}.npy")
+
+    def load(self, key: str) -> np.ndarray:
+        return load_npz(self.pred, [key])[key] if self.archive else load_npy(self.pred / f"{key}.npy")
+
+
 def load_predictions(pred: Path, speakers: list[str], reactions: int, frames: int) -> np.ndarray:
     """(N, R, frames, 25) float32 in sample order from any of the accepted prediction forms."""
     n = len(speakers)
@@ -129,17 +147,13 @@ def load_predictions(pred: Path, speakers: list[str], reactions: int, frames: in
         if STACKED_KEY in keys:
             array = load_npz(pred, [STACKED_KEY])[STACKED_KEY]
             return _cut(array, f"{pred}[{STACKED_KEY}]", (n, reactions), frames).astype(np.float32)
-        found = {k: None for k in keys}
-        loader = lambda key: load_npz(pred, [key])[key]  # noqa: E731
-        where = lambda key: f"{pred}[{key}]"  # noqa: E731
+        found = _KeyedPredictions(pred, keys)
     elif pred.is_dir():
-        found = {f.relative_to(pred).with_suffix("").as_posix(): None for f in sorted(pred.rglob("*.npy"))}
-        loader = lambda key: load_npy(pred / f"{key}.npy")  # noqa: E731
-        where = lambda key: str(pred / f"{key}.npy")  # noqa: E731
+        found = _KeyedPredictions(pred)
     else:
         raise InputError(pred, "predictions must be an .npz or a folder of .npy files")
-    missing = [s for s in speakers if s not in found]
-    extra = sorted(set(found) - set(speakers))
+    missing = [s for s in speakers if s not in found.keys]
+    extra = sorted(found.keys - set(speakers))
     if missing or extra:
         problems = []
         if missing:
@@ -150,7 +164,7 @@ def load_predictions(pred: Path, speakers: list[str], reactions: int, frames: in
                                "or one (R, T, 25) array per speaker relative path")
     out = np.empty((n, reactions, frames, suite.DIM), dtype=np.float32)
     for k, speaker in enumerate(speakers):
-        out[k] = _cut(loader(speaker), where(speaker), (reactions,), frames)
+        out[k] = _cut(found.load(speaker), found.name(speaker), (reactions,), frames)
     return out
 
 
