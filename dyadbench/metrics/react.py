@@ -7,10 +7,11 @@ reaction of sample j is appropriate for speaker k. Feature columns: 0-14 action 
 and arousal, 17-24 expression probabilities.
 
 Like the official pipeline, which holds every array as float32, all inputs are rounded to float32;
-the arithmetic is then float64. Each metric matches the official scripts to round-off (about 1e-12
-relative for FRCorr/FRDist/FRDiv/FRVar/FRDvs against a float64 evaluation of the same formulas; the
-official float32 ``torch.cdist`` of FRDiv/FRDvs and float32 statistics of FRCorr differ from it by up
-to ~1e-6 relative). FRSyn is an average of integer offsets and matches exactly.
+the arithmetic is then float64. FRDist equals the official tslearn loop bit for bit (same DTW
+operations, same sums); FRSyn is an average of integer offsets with the same float32 steps and matches
+exactly; FRCorr, FRDiv, FRVar and FRDvs agree with a float64 loop evaluation of the same formulas to
+~1e-12 relative (the official script's float32 ``torch.cdist`` for FRDiv/FRDvs and float32 statistics
+for FRCorr differ from float64 by up to ~1e-6 relative).
 
 FRRea (FID of rendered frames) needs FaceVerse, PIRender and the videos: it is not computed here and
 is reported as such by the scorer (:data:`NOT_COMPUTED`).
