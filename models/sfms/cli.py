@@ -156,8 +156,9 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
 
     \b
-    Example (the shipped tiny model):
-      dyadbench train sfms --config tiny --tokenizer sfms-tok.pt --out models/sfms/checkpoints/sfms-tiny.pt
+    Example (the shipped tiny model; one command line):
+      dyadbench train sfms --config tiny --clips 400 --steps 800 --tokenizer sfms-tok.pt
+          --out models/sfms/checkpoints/sfms-tiny.pt
     """
     torch.set_num_threads(threads)
     if preset not in PREDICTOR_PRESETS:

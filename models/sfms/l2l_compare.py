@@ -11,6 +11,8 @@ speaker = the partner's motion — and prints / writes one comparison table::
 from __future__ import annotations
 
 import math
+import shlex
+import sys
 from pathlib import Path
 
 import click
@@ -118,7 +120,8 @@ def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None
     text = table(rows)
     click.echo(text)
     if out is not None:
-        atomic.write_text(out, text + "\n")
+        command = "python -m models.sfms.l2l_compare " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        atomic.write_text(out, f"L2L-line suite (seed {seed}), scored by `{command}`\n\n{text}\n")
 
 
 if __name__ == "__main__":
