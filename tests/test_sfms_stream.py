@@ -97,3 +97,12 @@ def test_neutral_start_generation_runs_750_frames(weights):
     out = roll(Roller(model), torch.zeros(1, 750, 56), torch.zeros(1, 3000, 8), 0, 750,
                torch.Generator().manual_seed(0))
     assert out.shape == (1, 750, 56) and torch.isfinite(out).all()
+
+
+def test_shipped_checkpoint_loads_and_records_its_training():
+    model = build_sfms(ModelOptions())
+    assert model.info.weights_path.endswith("sfms-tiny.pt")
+    meta = model.info.config["train_meta"]
+    assert meta["model"] == "sfms" and meta["data"]["dataset"] == "synthetic" and meta["seed"] == 0
+    assert model.info.config["tokenizer"]["keyframe_mode"] == "dynamic"
+    assert meta["best_val_ce"] < meta["val"][-1]["unigram_ce"]  # beats the class-frequency predictor
