@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from dyadbench.errors import InputError
+from dyadbench.errors import ConfigError, InputError
 from dyadbench.features.logmel import logmel_frames
 from models.timar.config import SPEECH_DIMS, TimarConfig
 
@@ -78,4 +78,8 @@ def make_frontend(cfg: TimarConfig, sample_rate: int = 16_000, fps: float = 25.0
                   wav2vec_weights: str | None = None) -> SpeechFrontend:
     if cfg.speech_frontend == "logmel":
         return LogMelFrontend(cfg, sample_rate, fps)
-    return Wav2VecFrontend(cfg, sample_rate, fps, wav2vec_weights)
+    frontend = Wav2VecFrontend(cfg, sample_rate, fps, wav2vec_weights)
+    if frontend.dim != cfg.speech_dim:
+        raise ConfigError(f"the wav2vec 2.0 model at {wav2vec_weights} gives {frontend.dim}-d features; the {cfg.name} "
+                          f"config expects {cfg.speech_dim}-d (facebook/wav2vec2-large-960h-lv60-self)")
+    return frontend
