@@ -15,8 +15,8 @@ from dyadbench.training.checkpoint import load_checkpoint
 from models.sfms import cli
 from models.sfms.registry import build_sfms
 
-SMALL = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--steps", "3", "--batch", "4", "--val-windows", "8",
-         "--threads", "1"]
+SMALL = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--steps", "3", "--batch", "4",
+         "--val-windows", "8", "--threads", "1"]
 
 
 @pytest.fixture

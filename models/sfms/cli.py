@@ -111,8 +111,8 @@ def _write_log(out: Path, history: dict) -> Path:
 @click.option("--keyframe-mode", type=click.Choice(["dynamic", "static", "dense"]), default=None,
               help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
 @click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")
-def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads, device, out,
-                    keyframes, keyframe_mode, quantizer) -> None:
+def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
+                    device, out, keyframes, keyframe_mode, quantizer) -> None:
     """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
 
     \b
@@ -151,8 +151,8 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
 @_common
 @click.option("--tokenizer", "tokenizer_path", type=click.Path(path_type=Path, exists=True, dir_okay=False),
               required=True, help="Stage-1 checkpoint from `dyadbench train sfms-tokenizer`.")
-def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads, device, out,
-                    tokenizer_path) -> None:
+def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
+                    device, out, tokenizer_path) -> None:
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
 
     \b
