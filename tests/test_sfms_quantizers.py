@@ -1,6 +1,5 @@
 """SFMS keyframe quantisers: FSQ grid round trips and straight-through; VQ nearest code and losses."""
 
-import itertools
 
 import pytest
 import torch

@@ -6,7 +6,7 @@ import torch
 
 from models.sfms.config import tokenizer_preset
 from models.sfms.tokenizer import SFMSTokenizer
-from models.sfms.train_tokenizer import eval_windows, fit_tokenizer, reconstruction_mse
+from models.sfms.train_tokenizer import fit_tokenizer, reconstruction_mse
 
 torch.set_num_threads(1)
 
