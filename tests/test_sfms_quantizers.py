@@ -1,6 +1,5 @@
 """SFMS keyframe quantisers: FSQ grid round trips and straight-through; VQ nearest code and losses."""
 
-
 import pytest
 import torch
 from hypothesis import given, settings, strategies as st
