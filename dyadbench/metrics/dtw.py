@@ -304,7 +304,7 @@ def dtw(x, y) -> float:
     return float(weighted_dtw_pairs(x[None], y[None], [0], [0])[0])
 
 
-def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool = True,
+def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool = False,
                      threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each query q: the minimum over its candidates r of the weighted grouped DTW, and where.
 
@@ -316,7 +316,8 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
     Work is batched by reference (one reference shared by LANES queries). With ``prune``, each query's
     candidate of smallest diagonal-path cost is computed first; every other pair then carries its
     query's value as a threshold and batches are abandoned exactly as the module docstring describes
-    (same results, less work). ``threads`` caps numba's threads for this call.
+    (same results; less work only when candidates differ clearly, else the extra first pass costs more).
+    ``threads`` caps numba's threads for this call.
     """
     queries, refs = _check_series(queries, refs)
     indptr = np.asarray(indptr, dtype=np.int64)

@@ -158,7 +158,7 @@ def fr_corr(p, lst, indptr, indices) -> float:
     return float(np.mean(_sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))))
 
 
-def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = True, threads: int | None = None,
+def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = False, threads: int | None = None,
                          progress: bool = False) -> np.ndarray:
     """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
     n, r = p.shape[:2]
@@ -176,7 +176,7 @@ def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = True, threads
     return out
 
 
-def fr_dist(p, lst, indptr, indices, *, prune: bool = True, threads: int | None = None) -> float:
+def fr_dist(p, lst, indptr, indices, *, prune: bool = False, threads: int | None = None) -> float:
     """FRDist (lower is better).
 
     .. math:: \\mathrm{FRDist} = \\frac{1}{N}\\sum_k \\sum_i \\min_{j: S_{kj}=1}
@@ -277,7 +277,7 @@ def fr_syn(p, sp, *, all_reactions: bool = False) -> float:
 
 
 def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
-             prune: bool = True, threads: int | None = None,
+             prune: bool = False, threads: int | None = None,
              progress: bool = False) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """:func:`score` plus each speaker sample's contribution: ``(metrics, per_sample)``.
 
@@ -308,13 +308,14 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
 
 
 def score(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
-          prune: bool = True, threads: int | None = None) -> dict[str, float]:
+          prune: bool = False, threads: int | None = None) -> dict[str, float]:
     """Every metric of the suite: a dict keyed ``FRCorr FRDist FRDiv FRVar FRDvs FRSyn FRSyn_all``.
 
     ``predictions`` (N, R, T, 25), ``listener`` and ``speaker`` (N, T, 25), ``neighbours`` (N, N) of 0/1.
     Raises :class:`InputError` for wrong shapes, a wrong R (``reactions=None`` accepts any), NaN/inf
-    values, or a neighbour row without any 1 (naming the row). ``prune`` and ``threads`` only change
-    FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist and
+    values, or a neighbour row without any 1 (naming the row). ``prune`` (exact early abandoning, see
+    :mod:`dyadbench.metrics.dtw`; off by default: it cost ~15% more than it saved on the benchmark's
+    data) and ``threads`` only change FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist and
     FRSyn (see :data:`HIGHER_IS_BETTER`).
     """
     return evaluate(predictions, listener, speaker, neighbours, reactions=reactions, prune=prune,
