@@ -249,3 +249,14 @@ def test_initial_weights_depend_only_on_the_config_seed():
     c = StyGazeTalkSystem(replace(cfg, seed=1), se_cfg).state_dict()
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert not torch.equal(a["generator.head.weight"], c["generator.head.weight"])
+
+
+def test_recorded_decisions_without_an_alternative_are_rejected_not_ignored():
+    from dyadbench.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="window_local_audio"):
+        replace(get_generator_config("tiny-se64"), window_local_audio=False).validate()
+    with pytest.raises(ConfigError, match="positional_encoding"):
+        StyleEncoder(replace(get_style_config("tiny-se64"), positional_encoding="learned"))
+    with pytest.raises(ConfigError, match="horizon"):
+        replace(get_generator_config("tiny-se64"), horizon=60).validate()

@@ -3,7 +3,8 @@
 Two frozen dataclasses, :class:`StyleEncoderConfig` (stage 1, contrastive) and
 :class:`GeneratorConfig` (stage 2, LSTM or Transformer generator), and a table of named presets:
 the paper's variants (Base, SE-32, SE-64, SE-64-VEL, TFM-SE-64, MPGW-sim) at two sizes, ``base``
-(the spec's decided sizes) and ``tiny`` (minutes on 2 CPU cores). A preset name is
+(the spec's decided sizes) and ``tiny`` (minutes on 2 CPU cores), plus ``se64-vel-x1``, an extension
+beyond the paper (sampled eye decoding, X1) that the shipped checkpoint uses. A preset name is
 ``<size>-<variant>``, e.g. ``tiny-se64``; the style encoder presets are ``<size>-se32`` / ``<size>-se64``.
 """
 
@@ -44,6 +45,15 @@ class StyleEncoderConfig:
     def to_dict(self) -> dict:
         return asdict(self)
 
+    def validate(self) -> "StyleEncoderConfig":
+        fixed = {"positional_encoding": "sinusoidal", "pooling": "mean", "normalisation": "zscore-train"}
+        for key, only in fixed.items():  # recorded decisions with no implemented alternative
+            if getattr(self, key) != only:
+                raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        if self.loss_reduction not in ("mean", "sum") or self.d_s % self.heads:
+            raise ConfigError(f"{self.name}: loss_reduction must be mean or sum and heads must divide d_s")
+        return self
+
 
 @dataclass(frozen=True)
 class GeneratorConfig:
@@ -62,7 +72,8 @@ class GeneratorConfig:
     wav2vec_path: str | None = None  # D10: local wav2vec2-base-960h folder; never downloaded
     wav2vec_finetune_top_k: int = 0  # D11: frozen
     window_local_audio: bool = True  # D12: features computed from the window's waveform only
-    feature_grid_stride: int = 25  # D12: training windows start on this grid (N: the inference grid)
+    feature_grid_stride: int = 25  # D12: training windows start on this grid (N = the inference grid;
+    # tiny uses 5 so that 16 short sessions give ~3,400 windows; any multiple of 1 keeps features window-local)
     # networks (D6, D14–D19, D29)
     d: int = 128  # D32: audio and motion projection width
     motion_encoder: str = "linear"  # D6
@@ -139,6 +150,13 @@ class GeneratorConfig:
             raise ConfigError(f"{self.name}: decoding must be mean or sample, sample_dims gaze or all")
         if self.seed_window not in ("gt", "mpgw-sim"):
             raise ConfigError(f"{self.name}: seed_window must be gt or mpgw-sim")
+        fixed = {"alignment": "one-frame-lag", "motion_encoder": "linear", "window_local_audio": True,
+                 "normalisation": "zscore-train", "loss_reduction": "mean"}
+        for key, only in fixed.items():  # recorded decisions with no implemented alternative
+            if getattr(self, key) != only:
+                raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        if self.lr_schedule not in ("cosine", "constant"):
+            raise ConfigError(f"{self.name}: lr_schedule must be cosine or constant")
         if sorted(self.concat_order) != ["audio", "motion", "style"]:
             raise ConfigError(f"{self.name}: concat_order must order audio, motion and style")
         if not self.sample_temperature >= 0.0:

@@ -39,7 +39,7 @@ class StyleEncoder(nn.Module):
 
     def __init__(self, cfg: StyleEncoderConfig):
         super().__init__()
-        self.cfg = cfg
+        self.cfg = cfg.validate()
         self.proj = nn.Linear(MOTION_DIM, cfg.d_s)
         self.positions = SinusoidalPositions(cfg.d_s)
         self.dropout = nn.Dropout(cfg.dropout)
