@@ -6,8 +6,8 @@
   table it was transcribed from).
 - :func:`wide_table`: the paper layout of one suite (DualTalk/TIMAR: FD, P-FD, MSE, SID, rPCC for
   exp/jaw/pose, scaled as printed), one row per model and setting, with ``rank`` by the first column
-  among non-oracle rows of the same source/dataset/split/protocol/context. Oracle rows are kept, marked
-  and never ranked.
+  among non-oracle rows of the same source/dataset/split/protocol/context and ``items`` (predictions
+  scored; empty for published rows). Oracle rows are kept, marked and never ranked.
 - :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold).
 
 Published rows are stored as printed (scaled) in a CSV with columns ``source, reference, model,
@@ -112,10 +112,11 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
         columns = list(dict.fromkeys(part["metric"]))
     index = SETTING + ["model", "oracle"]
     if part.empty:
-        return pd.DataFrame(columns=index + ["rank"] + columns)
+        return pd.DataFrame(columns=index + ["rank", "items"] + columns)
     part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
-    wide = wide.reindex(columns=index + columns)
+    items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
+    wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + columns)
     first = columns[0]
     ascending = not bool(better.get(first, False))
     wide["rank"] = pd.array([pd.NA] * len(wide), dtype="Int64")
@@ -123,13 +124,13 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
     wide.loc[ranked, "rank"] = (wide[ranked].groupby(SETTING)[first]
                                 .rank(method="min", ascending=ascending).astype("Int64"))
     wide = wide.sort_values(SETTING + ["oracle", "rank", "model"], kind="stable", na_position="last")
-    return wide[index + ["rank"] + columns].reset_index(drop=True)
+    return wide[index + ["rank", "items"] + columns].reset_index(drop=True)
 
 
 def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) -> str:
     """A LaTeX tabular of a wide table; best ranked value per column and group in bold, oracle marked."""
     columns, scale, better = suite_info(suite)
-    columns = columns or [c for c in wide.columns if c not in SETTING + ["model", "oracle", "rank"]]
+    columns = columns or [c for c in wide.columns if c not in SETTING + ["model", "oracle", "rank", "items"]]
     header = " & ".join(["Model"] + [_latex_header(c, scale.get(c, 1.0), better.get(c)) for c in columns])
     lines = [r"\begin{tabular}{l" + "r" * len(columns) + "}", r"\toprule", header + r" \\", r"\midrule"]
     for setting, group in wide.groupby(SETTING, sort=False):
