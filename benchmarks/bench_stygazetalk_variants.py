@@ -33,7 +33,8 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.registry import DATASETS, MODELS
-from dyadbench.scoring.gaze import derangement, score_arrays
+from dyadbench.metrics.gaze import sliding_windows
+from dyadbench.scoring.gaze import SEED_FRAMES, derangement, score_arrays
 from dyadbench.scoring.report import ScoreItem
 from models.stygazetalk.checkpoints import SHIPPED_MODEL, load_style_model, load_system
 from models.stygazetalk.cli import train_generator, train_style_encoder
@@ -117,6 +118,26 @@ def _x1_scale_grid(weights: Path, val_clips, config: ProtocolConfig, evaluator) 
     return grid
 
 
+def _style_transfer(weights: Path, clips, config: ProtocolConfig, evaluator) -> dict[str, float]:
+    """Mean cosine of the output's session style (mean evaluator embedding) to its own and to the reference
+    session's ground-truth style, without and with ``style_from`` = session (i + 3) mod n; mean decoding."""
+    def style(motion):
+        e = evaluator(sliding_windows(np.asarray(motion[SEED_FRAMES:], np.float64), evaluator.window, evaluator.hop))
+        v = (e / np.linalg.norm(e, axis=1, keepdims=True)).mean(axis=0)
+        return v / np.linalg.norm(v)
+
+    gt = [style(c.participants[0].motion) for c in clips]
+    cos = {"own→own GT": [], "own→ref GT": [], "transfer→own GT": [], "transfer→ref GT": []}
+    for i, clip in enumerate(clips):
+        j = (i + 3) % len(clips)
+        for tag, extra in (("own", {}), ("transfer", {"style_from": clips[j].participants[0].motion})):
+            out = _stream("stygazetalk", ModelOptions(weights=weights, extra={"decoding": "mean", **extra}),
+                          [clip], config)[0].pred
+            cos[f"{tag}→own GT"].append(float(style(out) @ gt[i]))
+            cos[f"{tag}→ref GT"].append(float(style(out) @ gt[j]))
+    return {k: float(np.mean(v)) for k, v in cos.items()}
+
+
 def _retrieval(path: Path, test, val) -> tuple[float, float, float, float]:
     model, _ = load_style_model(path)
     wt, st, _ = tiled_windows(test, model.cfg.window)
@@ -166,6 +187,7 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
     ablation = {f"{v}-seed{seed}": score_arrays(_stream("stygazetalk", ModelOptions(weights=paths[f"{v}-seed{seed}"]),
                                                         clips, config), seed=0).metrics
                 for v in ABLATION for seed in ABLATION_SEEDS[1:]}
+    transfer = _style_transfer(paths["se64-vel"], clips, config, evaluator)
     x1_grid = _x1_scale_grid(paths["se64-vel"], list(DATASETS.load(DATASET)(None, "val")), config, evaluator)
 
     limit = get_style_config("tiny-se64").angle_limit_deg
@@ -211,6 +233,9 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
                      f"{np.mean([m['comp_score'] for m in runs]):.3f} | {np.mean([m['sim_gt_seq'] for m in runs]):.3f} |")
     toward = abs(means["se64-vel"] - gt["fix_ratio"]) < abs(means["se64"] - gt["fix_ratio"])
     lines += ["", f"Mean over seeds: the velocity loss moves FixRatio {'toward' if toward else 'AWAY FROM'} the ground truth.",
+              "", "Style transfer (SE-64-VEL, mean decoding; style_from = another test session; cosine between "
+                  "session styles, i.e. mean evaluator embeddings): "
+                  + ", ".join(f"{k} {v:.3f}" for k, v in transfer.items()) + ".",
               "", "X1 (extension beyond the paper: eye angles drawn from the teacher-forced validation residuals, "
                   "head decoded by its mean) — residual scale chosen on the val split by Sim_seq: "
                   + ", ".join(f"{k:g} → {v:.3f}" for k, v in x1_grid.items()) + ".",
