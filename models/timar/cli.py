@@ -79,7 +79,7 @@ def train_timar(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-tiny.pt):
-      dyadbench train timar --config tiny --clips 300 --epochs 2 --warmup-epochs 0.05 --seed 0 \\
+      dyadbench train timar --config tiny --clips 300 --epochs 3 --warmup-epochs 0.05 --seed 0 \\
           --export models/timar/checkpoints/timar-tiny.pt
     Multi-GPU: torchrun --nproc_per_node 8 -m dyadbench train timar --config large --device cuda ...
     """
@@ -93,7 +93,7 @@ def train_timar_stream(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-stream-tiny.pt):
-      dyadbench train timar-stream --config tiny --clips 300 --epochs 2 --warmup-epochs 0.05 --seed 0 \\
+      dyadbench train timar-stream --config tiny --clips 300 --epochs 3 --warmup-epochs 0.05 --seed 0 \\
           --export models/timar/checkpoints/timar-stream-tiny.pt
     """
     _run("stream", **kwargs)
