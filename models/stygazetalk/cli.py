@@ -96,12 +96,14 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
               help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
 @click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
+@click.option("--selection", type=click.Choice(["val-loss", "last"]), default=None,
+              help="Override which weights are kept: lowest validation loss (preset) or the final step.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Checkpoint file to write (atomically).")
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
                     val_split: str, steps: int | None, batch: int | None, lam: float | None, seed: int | None,
-                    threads: int, out: Path) -> None:
+                    selection: str | None, threads: int, out: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The selected weights are those with the lowest teacher-forced validation loss.
@@ -115,7 +117,8 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.train_generator import train_generator as fit
 
     torch.set_num_threads(threads)
-    cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam, seed=seed).validate()
+    cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam, seed=seed,
+                     checkpoint_selection=selection).validate()
     style, style_digest = None, None
     if cfg.style:
         if style_path is None:

@@ -107,6 +107,7 @@ class GeneratorConfig:
     grad_clip: float = 1.0
     weight_decay: float = 0.0
     val_every: int = 500
+    checkpoint_selection: str = "val-loss"  # D27: lowest validation L_gen; "last": the final weights
     # data and evaluation (D3, D4, D28, D30)
     normalisation: str = "zscore-train"  # D4
     angle_limit_deg: float = 40.0  # D3: frames with any |angle| above are dropped by the adapter
@@ -155,6 +156,8 @@ class GeneratorConfig:
         for key, only in fixed.items():  # recorded decisions with no implemented alternative
             if getattr(self, key) != only:
                 raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        if self.checkpoint_selection not in ("val-loss", "last"):
+            raise ConfigError(f"{self.name}: checkpoint_selection must be val-loss or last")
         if self.lr_schedule not in ("cosine", "constant"):
             raise ConfigError(f"{self.name}: lr_schedule must be cosine or constant")
         if sorted(self.concat_order) != ["audio", "motion", "style"]:

@@ -136,7 +136,8 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
         sched.step()
         if step % cfg.val_every == 0 or step == cfg.steps:
             log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch), system)
-    log.restore_best(system)
+    if cfg.checkpoint_selection == "val-loss":
+        log.restore_best(system)
     system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
     system.eval()
     log.seconds = time.perf_counter() - start
