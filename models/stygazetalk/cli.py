@@ -138,5 +138,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
             "train_windows": log.train_windows,
             "curve": log.curve()}
     path = save_system(out, system, meta)
+    kept = f"best step {log.best_step}" if cfg.checkpoint_selection == "val-loss" else \
+        f"final weights kept; best step was {log.best_step}"
     click.echo(f"generator {cfg.name} ({cfg.variant}): val loss {log.step0_val_loss:.4f} -> {log.best_val:.4f} "
-               f"(best step {log.best_step}, {log.seconds:.0f} s); wrote {path}")
+               f"({kept}, {log.seconds:.0f} s); wrote {path}")
