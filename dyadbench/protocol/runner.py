@@ -150,7 +150,8 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                 latencies.extend(s.output.turn_latency_s)
             bar.update(1)
         bar.close()
-        report, reused = score_items(suite, items, jobs=jobs, seed=config.seed)
+        report, reused = score_items(suite, items, jobs=jobs, seed=config.seed,
+                                     options=suite_options(suite, model.info))
     finally:
         if temporary:
             shutil.rmtree(pred_dir, ignore_errors=True)
@@ -196,17 +197,37 @@ def items_digest(suite: str, seed: int, items: list[ScoreItem]) -> str:
     return h.hexdigest()
 
 
-def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int):
-    """``dyadbench.scoring.<suite>.score_arrays(items)``, memoised in this process by :func:`items_digest`.
+def suite_options(suite: str, info) -> dict:
+    """Keyword arguments of the suite's ``score_arrays`` that depend on the model.
+
+    The gaze–head suite skips at least the model's seed window (``ModelInfo.seed_frames``, never less
+    than the suite's default) and reports the style cosine error with the frozen, versioned StyGazeTalk
+    style encoder, the same network for every model.
+    """
+    if suite != "gaze":
+        return {}
+    from dyadbench.scoring.gaze import SEED_FRAMES, GazeSuiteConfig
+    from models.stygazetalk.evaluator import load_style_evaluator
+
+    return {"config": GazeSuiteConfig(skip_frames=max(SEED_FRAMES, info.seed_frames)),
+            "style_encoder": load_style_evaluator()}
+
+
+def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int, options: dict | None = None):
+    """``dyadbench.scoring.<suite>.score_arrays(items, **options)``, memoised in this process by
+    :func:`items_digest` and the options.
 
     A history-free model gives byte-identical predictions at every context length; a sweep then scores
     them once. Returns (report, digest if the report was reused else None).
     """
-    key = items_digest(suite, seed, items)
+    options = options or {}
+    option_text = repr(sorted((name, getattr(value, "digest", value)) for name, value in options.items()))
+    key = hashlib.sha256((items_digest(suite, seed, items) + option_text).encode()).hexdigest()
     if key in _SCORE_MEMO:
         _SCORE_MEMO.move_to_end(key)
         return _SCORE_MEMO[key], key
-    report = importlib.import_module(f"dyadbench.scoring.{suite}").score_arrays(items, jobs=jobs, seed=seed)
+    report = importlib.import_module(f"dyadbench.scoring.{suite}").score_arrays(items, jobs=jobs, seed=seed,
+                                                                          **options)
     _SCORE_MEMO[key] = report
     while len(_SCORE_MEMO) > SCORE_MEMO_SIZE:
         _SCORE_MEMO.popitem(last=False)
