@@ -6,12 +6,12 @@ and ``dyadbench models`` stay fast and never import torch.
 
 from __future__ import annotations
 
-import importlib
 import sys
 
 import click
 
 from dyadbench import __version__
+from dyadbench.cli.lazy import lazy_group
 from dyadbench.errors import DyadbenchError
 
 # command name -> ("module:attribute", one-line help)
@@ -28,25 +28,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-class LazyGroup(click.Group):
-    """A click group whose sub-commands are imported on first use."""
-
-    def list_commands(self, ctx: click.Context) -> list[str]:
-        return list(COMMANDS)
-
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        if cmd_name not in COMMANDS:
-            return None
-        module_name, _, attr = COMMANDS[cmd_name][0].partition(":")
-        return getattr(importlib.import_module(module_name), attr)
-
-    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        rows = [(name, help_text) for name, (_, help_text) in COMMANDS.items()]
-        with formatter.section("Commands"):
-            formatter.write_dl(rows)
-
-
-@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.group(cls=lazy_group(COMMANDS), context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="dyadbench")
 def cli() -> None:
     """dyadbench: score dyadic head-motion models exactly as the published metric scripts do.

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-import importlib
-
 import click
+
+from dyadbench.cli.lazy import lazy_group
 
 TRAINERS: dict[str, tuple[str, str]] = {
     "timar": ("models.timar.cli:train_timar", "Faithful TIMAR (tiny/base/large)."),
@@ -17,22 +17,7 @@ TRAINERS: dict[str, tuple[str, str]] = {
 }
 
 
-class _LazyTrainers(click.Group):
-    def list_commands(self, ctx: click.Context) -> list[str]:
-        return list(TRAINERS)
-
-    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
-        if cmd_name not in TRAINERS:
-            return None
-        module_name, _, attr = TRAINERS[cmd_name][0].partition(":")
-        return getattr(importlib.import_module(module_name), attr)
-
-    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
-        with formatter.section("Models"):
-            formatter.write_dl([(n, h) for n, (_, h) in TRAINERS.items()])
-
-
-@click.group(cls=_LazyTrainers)
+@click.group(cls=lazy_group(TRAINERS, "Models"))
 def train() -> None:
     """Train a reference model on a dataset (the embedded corpus by default).
 

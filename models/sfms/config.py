@@ -42,10 +42,12 @@ fields here: they belong to the evaluation suites or were not implemented.
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 from dyadbench.errors import ConfigError
+from dyadbench.training.config import config_from_dict as from_dict  # noqa: F401  (re-exported)
+from dyadbench.training.config import config_to_dict as to_dict  # noqa: F401  (re-exported)
 
 TOKENIZER_CHOICES = {
     "keyframe_mode": ("dynamic", "static", "dense"),
@@ -234,17 +236,3 @@ def tokenizer_preset(name: str, **overrides: Any) -> TokenizerConfig:
 
 def predictor_preset(name: str, **overrides: Any) -> PredictorConfig:
     return replace(_preset(PREDICTOR_PRESETS, name, "predictor"), **overrides)
-
-
-def to_dict(cfg: TokenizerConfig | PredictorConfig) -> dict:
-    """Plain dict (tuples become lists) for checkpoints and results."""
-    return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(cfg).items()}
-
-
-def from_dict(cls: type, data: dict):
-    """Rebuild a config saved by :func:`to_dict`; unknown keys are an error (a foreign checkpoint)."""
-    known = {f.name for f in fields(cls)}
-    unknown = set(data) - known
-    if unknown:
-        raise ConfigError(f"{cls.__name__}: unknown fields {sorted(unknown)}")
-    return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})

@@ -10,9 +10,10 @@ beyond the paper (sampled eye decoding, X1) that the shipped checkpoint uses. A 
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 from dyadbench.errors import ConfigError
+from dyadbench.training.config import config_from_dict, config_to_dict  # noqa: F401  (config_from_dict re-exported)
 
 MOTION_DIM = 7  # D1: [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch, R_yaw], degrees
 CHANNELS = ("head_pitch", "head_yaw", "head_roll", "left_pitch", "left_yaw", "right_pitch", "right_yaw")
@@ -43,7 +44,7 @@ class StyleEncoderConfig:
     seed: int = 0
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return config_to_dict(self)
 
     def validate(self) -> "StyleEncoderConfig":
         fixed = {"positional_encoding": "sinusoidal", "pooling": "mean", "normalisation": "zscore-train"}
@@ -132,9 +133,7 @@ class GeneratorConfig:
         return self.d_s if self.style else 0
 
     def to_dict(self) -> dict:
-        d = asdict(self)
-        d["concat_order"] = list(self.concat_order)
-        return d
+        return config_to_dict(self)
 
     def validate(self) -> "GeneratorConfig":
         if not 1 <= self.horizon <= self.window:
@@ -169,16 +168,6 @@ class GeneratorConfig:
         return self
 
 
-def config_from_dict(cls: type, data: dict):
-    """Rebuild a config from a checkpoint's plain dict (unknown keys are an error)."""
-    known = {f.name for f in fields(cls)}
-    unknown = set(data) - known
-    if unknown:
-        raise ConfigError(f"unknown {cls.__name__} fields in checkpoint: {sorted(unknown)}")
-    data = dict(data)
-    if "concat_order" in data:
-        data["concat_order"] = tuple(data["concat_order"])
-    return cls(**data)
 
 
 # --- presets ----------------------------------------------------------------------------------------
