@@ -13,9 +13,10 @@ One :class:`TimarConfig` describes both model variants:
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 from dyadbench.errors import ConfigError
+from dyadbench.training.config import config_from_dict, config_to_dict
 
 NUM_SPECIAL_TOKENS = 10
 MOTION_DIM = 56
@@ -81,15 +82,11 @@ class TimarConfig:
         return self.max_turns - 1
 
     def to_dict(self) -> dict:
-        return asdict(self)
+        return config_to_dict(self)
 
     @classmethod
     def from_dict(cls, data: dict) -> "TimarConfig":
-        known = {f.name for f in fields(cls)}
-        unknown = set(data) - known
-        if unknown:
-            raise ConfigError(f"unknown TIMAR config keys: {sorted(unknown)}")
-        return cls(**data)
+        return config_from_dict(cls, data)
 
 
 PRESETS: dict[str, TimarConfig] = {
