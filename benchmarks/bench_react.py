@@ -127,7 +127,7 @@ def main() -> None:
     sub_nnz = int(sub_s.sum())
     sub_ptr, sub_idx = csr(sub_s)
     m = min(5 * args.subset, n)
-    loops, fast_sub, scale, same = {}, {}, {}, {}
+    loops, scale, same = {}, {}, {}
 
     def compare(name, fast_value, slow_value, exact):
         same[name] = (fast_value == slow_value) if exact else bool(np.isclose(fast_value, slow_value, rtol=1e-12, atol=0))
