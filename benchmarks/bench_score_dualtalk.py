@@ -24,9 +24,7 @@ from __future__ import annotations
 
 import os
 import platform
-import resource
 import sys
-import time
 from pathlib import Path
 
 import click
@@ -37,6 +35,7 @@ from sklearn.cluster import KMeans
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 from dyadbench.metrics.dualtalk import KEYS  # noqa: E402
 from dyadbench.scoring.dualtalk import score_arrays  # noqa: E402
@@ -139,18 +138,6 @@ def reference_score(items: list[ScoreItem], seed: int) -> list[dict[str, float]]
 
 # --- the run -----------------------------------------------------------------------------------------
 
-def _cpu_seconds() -> float:
-    """CPU time of this process and of its finished worker processes (all threads)."""
-    children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return time.process_time() + children.ru_utime + children.ru_stime
-
-
-def _timed(fn):
-    """(result, wall seconds, CPU seconds)."""
-    start, cpu = time.perf_counter(), _cpu_seconds()
-    result = fn()
-    return result, time.perf_counter() - start, _cpu_seconds() - cpu
-
 
 def _max_abs_diff(rows_a: list[dict], rows_b: list[dict]) -> dict[str, float]:
     return {k: max(abs(a[k] - b[k]) for a, b in zip(rows_a, rows_b)) for k in KEYS}
@@ -169,11 +156,11 @@ def main(agents: int, reference_agents: int, seed: int) -> None:
     print(f"# DualTalk-suite scoring: {agents} agents, mean {frames:.0f} frames; {os.cpu_count()} CPUs; "
           f"load average before: {os.getloadavg()[0]:.2f}; python {platform.python_version()}")
 
-    ref_rows, t_ref, cpu_ref = _timed(lambda: reference_score(ref_items, seed))
+    ref_rows, t_ref, cpu_ref = timed(lambda: reference_score(ref_items, seed))
     with threadpool_limits(limits=1):
-        ref_rows_1, t_ref_1, cpu_ref_1 = _timed(lambda: reference_score(ref_items, seed))
-    report_1, t_jobs1, cpu_jobs1 = _timed(lambda: score_arrays(items, jobs=1, seed=seed))
-    report_2, t_jobs2, cpu_jobs2 = _timed(lambda: score_arrays(items, jobs=2, seed=seed))
+        ref_rows_1, t_ref_1, cpu_ref_1 = timed(lambda: reference_score(ref_items, seed))
+    report_1, t_jobs1, cpu_jobs1 = timed(lambda: score_arrays(items, jobs=1, seed=seed))
+    report_2, t_jobs2, cpu_jobs2 = timed(lambda: score_arrays(items, jobs=2, seed=seed))
     print(f"# load average after: {os.getloadavg()[0]:.2f}")
 
     base = len(ref_items) / t_ref

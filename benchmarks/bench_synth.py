@@ -19,11 +19,9 @@ from __future__ import annotations
 
 import os
 import platform
-import resource
 import shutil
 import sys
 import tempfile
-import time
 from pathlib import Path
 from unittest import mock
 
@@ -31,6 +29,7 @@ import click
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 from dyadbench.synth import speech  # noqa: E402
 from dyadbench.synth.corpus import make_clips  # noqa: E402
@@ -64,19 +63,6 @@ def additive_synthesise(r, style, env, f0, vowel, burst, phrases, n_samples, sam
         voiced += speech.upsample_linear(burst[k0:k1], step) * speech._noise(r, s1 - s0)
         audio[s0:s1] += (style.loudness * voiced).astype(np.float32)
     return speech.pcm16_to_float(speech.float_to_pcm16(audio))
-
-
-def cpu_seconds() -> float:
-    """CPU time of this process and of its finished child processes (user + system)."""
-    children = resource.getrusage(resource.RUSAGE_CHILDREN)
-    return time.process_time() + children.ru_utime + children.ru_stime
-
-
-def timed(fn):
-    """(result, wall seconds, CPU seconds)."""
-    start, cpu = time.perf_counter(), cpu_seconds()
-    out = fn()
-    return out, time.perf_counter() - start, cpu_seconds() - cpu
 
 
 @click.command()
