@@ -2,12 +2,13 @@
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 
 import torch
 import torch.distributed as dist
 from torch import nn
+
+from dyadbench.training.distributed import init_distributed, uses_cuda
 
 
 @dataclass(frozen=True)
@@ -22,17 +23,12 @@ class World:
 
 
 def init_world(device: str = "cpu") -> World:
-    """Join the process group that ``torchrun`` describes in the environment (NCCL on CUDA, else Gloo)."""
-    size = int(os.environ.get("WORLD_SIZE", "1"))
-    if size == 1:
+    """Join the process group that ``torchrun`` describes (see :mod:`dyadbench.training.distributed`)."""
+    info = init_distributed(device)
+    if not info.active:
         return World(0, 1, torch.device(device))
-    local = int(os.environ.get("LOCAL_RANK", "0"))
-    cuda = device.startswith("cuda") and torch.cuda.is_available()
-    if cuda:
-        torch.cuda.set_device(local)
-    if not dist.is_initialized():
-        dist.init_process_group("nccl" if cuda else "gloo")
-    return World(dist.get_rank(), size, torch.device(f"cuda:{local}" if cuda else "cpu"))
+    local_device = torch.device(f"cuda:{info.local_rank}" if uses_cuda(device) else "cpu")
+    return World(info.rank, info.world_size, local_device)
 
 
 def wrap(model: nn.Module, world: World) -> nn.Module:
@@ -44,5 +40,5 @@ def wrap(model: nn.Module, world: World) -> nn.Module:
 
 
 def close_world(world: World) -> None:
-    if world.size > 1 and dist.is_initialized():
+    if dist.is_initialized():
         dist.destroy_process_group()

@@ -15,7 +15,6 @@ full training state (raw weights, optimiser, EMA, RNG), so ``--resume`` continue
 
 from __future__ import annotations
 
-import os
 import sys
 import time
 from dataclasses import asdict, dataclass
@@ -32,6 +31,7 @@ from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.seeding import derive_seed
 from dyadbench.training.checkpoint import load_checkpoint, save_checkpoint
+from dyadbench.training.distributed import DistributedInfo, init_distributed
 from dyadbench.training.ema import EMA
 from models.timar.config import TimarConfig
 from models.timar.data import WindowDataset, data_digest
@@ -54,26 +54,6 @@ class TrainSettings:
     command: str = ""
 
 
-@dataclass(frozen=True)
-class DistributedInfo:
-    rank: int = 0
-    world_size: int = 1
-    local_rank: int = 0
-    active: bool = False
-
-    @property
-    def is_main(self) -> bool:
-        return self.rank == 0
-
-
-def init_distributed(device: str) -> DistributedInfo:
-    """Initialise torch.distributed when launched by torchrun (RANK and WORLD_SIZE in the environment)."""
-    if "RANK" not in os.environ or "WORLD_SIZE" not in os.environ:
-        return DistributedInfo()
-    backend = "nccl" if device.startswith("cuda") else "gloo"
-    if not dist.is_initialized():
-        dist.init_process_group(backend=backend)
-    return DistributedInfo(dist.get_rank(), dist.get_world_size(), int(os.environ.get("LOCAL_RANK", 0)), True)
 
 
 def parameter_groups(model: TimarModel, weight_decay: float) -> list[dict]:
