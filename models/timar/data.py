@@ -17,7 +17,7 @@ from tqdm import tqdm
 
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import InputError
-from models.timar.config import TimarConfig
+from models.timar.config import MOTION_STD_FLOOR, TimarConfig
 from models.timar.frontends import SpeechFrontend
 
 
@@ -96,3 +96,10 @@ class WindowDataset(torch.utils.data.Dataset):
         """Per-dimension mean and standard deviation of all speech features (normalisation)."""
         allf = np.concatenate([f.speech for feats in self.features for f in feats.values()], axis=0)
         return allf.mean(0), np.maximum(allf.std(0), 1e-6)
+
+    def motion_statistics(self) -> tuple[np.ndarray, np.ndarray]:
+        """Per-dimension mean and standard deviation (floored at ``MOTION_STD_FLOOR``) of the motion of
+        every participant and frame of the training clips (``motion_norm = "per_dim"``)."""
+        allm = np.concatenate([f.motion for feats in self.features for f in feats.values()], axis=0)
+        allm = allm.astype(np.float64)
+        return allm.mean(0).astype(np.float32), np.maximum(allm.std(0), MOTION_STD_FLOOR).astype(np.float32)

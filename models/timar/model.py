@@ -12,6 +12,12 @@ become the learned [MASK], dropped user tokens (guidance training, or the uncond
 learned null token, and the 10 learned special tokens are interleaved. Positions are added, then
 LayerNorm, the blocks, a final LayerNorm, and a second learned position embedding; the features at
 agent-motion positions condition the diffusion head.
+
+Motion statistics: ``motion_mean``/``motion_std`` buffers (identity unless the config's
+``motion_norm`` is ``"per_dim"`` and training set them) standardise user and agent motion before the
+motion embedding and the agent motion as the diffusion target; :meth:`TimarModel.sample_frames` maps
+samples back to the original units. A checkpoint written before the buffers existed loads with
+identity statistics (:func:`with_motion_statistics`).
 """
 
 from __future__ import annotations
@@ -29,6 +35,12 @@ from models.timar.head import DiffusionHead
 GROUPS = (slice(0, 50), slice(50, 53), slice(53, 56))  # exp | jaw | pose: equal loss weights
 
 
+def with_motion_statistics(state: dict, motion_dim: int) -> dict:
+    """A state dict with identity motion statistics added where it has none (older checkpoints)."""
+    identity = {"motion_mean": torch.zeros(motion_dim), "motion_std": torch.ones(motion_dim)}
+    return {**{k: v for k, v in identity.items() if k not in state}, **state}
+
+
 def agent_motion_slice(frames_per_turn: int) -> slice:
     """Token positions of the agent-motion frames inside a turn."""
     return slice(8 + 3 * frames_per_turn, 8 + 4 * frames_per_turn)
@@ -41,6 +53,8 @@ class TimarModel(nn.Module):
         d_t, dim, length = cfg.token_dim, cfg.dim, cfg.tokens_per_turn
         self.register_buffer("speech_mean", torch.zeros(cfg.speech_dim))
         self.register_buffer("speech_std", torch.ones(cfg.speech_dim))
+        self.register_buffer("motion_mean", torch.zeros(cfg.motion_dim))
+        self.register_buffer("motion_std", torch.ones(cfg.motion_dim))
         self.speech_proj = nn.Linear(cfg.speech_dim, d_t)
         self.motion_embed = nn.Sequential(nn.Linear(cfg.motion_dim, d_t // 2), nn.ReLU(),
                                           nn.Linear(d_t // 2, d_t), nn.ReLU())
@@ -72,24 +86,36 @@ class TimarModel(nn.Module):
                 nn.init.xavier_uniform_(module.weight)
                 nn.init.zeros_(module.bias)
 
+    # --- motion units --------------------------------------------------------------------------------
+    def normalize_motion(self, motion: torch.Tensor) -> torch.Tensor:
+        """Original units -> the model's units (identity with the default statistics)."""
+        return (motion - self.motion_mean) / self.motion_std
+
+    def denormalize_motion(self, motion: torch.Tensor) -> torch.Tensor:
+        """The model's units -> original units (inverse of :meth:`normalize_motion`)."""
+        return motion * self.motion_std + self.motion_mean
+
     # --- tokens --------------------------------------------------------------------------------------
     def turn_tokens(self, user_speech: torch.Tensor, user_motion: torch.Tensor, agent_speech: torch.Tensor,
                     agent_motion: torch.Tensor | None = None, agent_masked: torch.Tensor | None = None,
                     user_null: torch.Tensor | None = None) -> torch.Tensor:
         """Interleaved tokens (B, N, 4F+10, D) of N turns.
 
-        Inputs are (B, N, F, ·): speech features, motion (56-d). ``agent_motion`` None means every
+        Inputs are (B, N, F, ·): speech features, motion (56-d, original units). ``agent_motion`` None means every
         agent slot is [MASK]; else ``agent_masked`` (B, N, F) bool picks the [MASK] slots.
         ``user_null`` (B, N, 2F) bool replaces user speech (first F) / motion (last F) tokens by null.
         """
         def speech(x: torch.Tensor) -> torch.Tensor:
             return self.token_proj(self.speech_proj((x - self.speech_mean) / self.speech_std))
 
-        us, um, ags = speech(user_speech), self.token_proj(self.motion_embed(user_motion)), speech(agent_speech)
+        def motion(x: torch.Tensor) -> torch.Tensor:
+            return self.token_proj(self.motion_embed(self.normalize_motion(x)))
+
+        us, um, ags = speech(user_speech), motion(user_motion), speech(agent_speech)
         if agent_motion is None:
             am = self.mask_token.expand_as(ags)
         else:
-            am = self.token_proj(self.motion_embed(agent_motion))
+            am = motion(agent_motion)
             am = torch.where(agent_masked[..., None], self.mask_token, am)
         if user_null is not None:
             frames = us.shape[2]
@@ -202,7 +228,7 @@ class TimarModel(nn.Module):
                                   per_turn(agent_motion), masked.view(b, turns, frames), user_null)
         band = int(torch.randint(0, cfg.max_turns, (1,)).item()) if cfg.variant == "stream" else None
         z = self.encode(tokens, band)[:, :, self.agent_slice].reshape(b, total, -1)
-        return self.diffusion_loss(z[masked], agent_motion[masked])
+        return self.diffusion_loss(z[masked], self.normalize_motion(agent_motion[masked]))
 
     def training_mask(self, batch: int, total: int, device: torch.device | str = "cpu") -> torch.Tensor:
         """(batch, total) bool: ceil(total·r) random agent frames per clip, one r per batch."""
@@ -215,6 +241,8 @@ class TimarModel(nn.Module):
 
     def diffusion_loss(self, cond: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
         """Mean over tokens of (MSE exp + MSE jaw + MSE pose of the x0 prediction) + VB term.
+
+        ``x0`` is in the model's units (normalised motion).
 
         Every condition is used ``diffusion_batch_mul`` times with independent timesteps and noise.
         """
@@ -231,7 +259,8 @@ class TimarModel(nn.Module):
     @torch.no_grad()
     def sample_frames(self, cond: torch.Tensor, generator: torch.Generator, cfg_scale: float = 1.0,
                       temperature: float = 1.0, clamp_variance: bool = True) -> torch.Tensor:
-        """Agent frames (F, 56) from conditions (1, F, D), or (2, F, D) = (conditional, unconditional).
+        """Agent frames (F, 56), original units, from conditions (1, F, D), or (2, F, D) = (conditional,
+        unconditional).
 
         With guidance the x0 prediction is ``u + s·(c − u)`` and the variance that of the
         conditional branch; with one condition row (s = 1) the head runs once per step.
@@ -251,8 +280,9 @@ class TimarModel(nn.Module):
                 guided = u[:, :channels] + cfg_scale * (c[:, :channels] - u[:, :channels])
                 return torch.cat([guided, c[:, channels:]], dim=-1)
 
-        return self.sample_diffusion.sample(denoise, (frames, channels), generator, temperature, cond.device,
-                                            clamp_variance)
+        x = self.sample_diffusion.sample(denoise, (frames, channels), generator, temperature, cond.device,
+                                         clamp_variance)
+        return self.denormalize_motion(x)
 
 
 def count_parameters(cfg: TimarConfig) -> int:

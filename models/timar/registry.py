@@ -18,7 +18,7 @@ from dyadbench.protocol.interface import ModelInfo, ModelOptions
 from dyadbench.training.checkpoint import file_digest, load_checkpoint
 from models.timar.config import TimarConfig
 from models.timar.frontends import make_frontend
-from models.timar.model import TimarModel
+from models.timar.model import TimarModel, with_motion_statistics
 from models.timar.streaming import BandStream, FaithfulStream
 
 CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
@@ -28,7 +28,11 @@ TRAIN_HINT = {"timar": "dyadbench train timar --config tiny --export PATH",
 
 
 def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]:
-    """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta)."""
+    """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta).
+
+    A checkpoint from before motion normalisation (no ``motion_norm`` in its config, no motion
+    statistics in its weights) loads with ``motion_norm = "none"`` and identity statistics.
+    """
     path = Path(weights) if weights is not None else SHIPPED[name]
     if not path.is_file():
         where = "given with --weights" if weights is not None else "shipped with the package"
@@ -38,7 +42,7 @@ def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]
     cfg = TimarConfig.from_dict(payload["config"])
     model = TimarModel(cfg)
     try:
-        model.load_state_dict(payload["model"])
+        model.load_state_dict(with_motion_statistics(payload["model"], cfg.motion_dim))
     except RuntimeError as exc:
         raise InputError(path, f"weights do not fit the {cfg.name} configuration: {exc}") from None
     return model, path, payload["meta"]

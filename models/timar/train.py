@@ -9,6 +9,8 @@ Recipe (per configuration, see :mod:`models.timar.config`): AdamW (0.9, 0.95) wi
 weight matrices of the backbone only (none on biases, norms, learned tokens/positions, or the
 diffusion head), linear warm-up over ``warmup_epochs`` then constant learning rate, gradient
 clipping, EMA of the weights (decay ``min(ema_decay, (1 + step) / (10 + step))``) used at test.
+Speech statistics, and with ``motion_norm = "per_dim"`` motion statistics, come from the training
+windows' clips and are stored as model buffers (so in every checkpoint).
 After every epoch ``<out>/checkpoint.pt`` holds the EMA weights, the config, the data digest and the
 full training state (raw weights, optimiser, EMA, RNG), so ``--resume`` continues bit-exactly.
 """
@@ -106,6 +108,10 @@ def train_timar_model(cfg: TimarConfig, source: ClipSource, out_dir: Path, setti
     mean, std = dataset.speech_statistics()
     model.speech_mean.copy_(torch.from_numpy(mean))
     model.speech_std.copy_(torch.from_numpy(std))
+    if cfg.motion_norm == "per_dim":
+        mean, std = dataset.motion_statistics()
+        model.motion_mean.copy_(torch.from_numpy(mean))
+        model.motion_std.copy_(torch.from_numpy(std))
     model.to(device)
     ema = EMA(model, cfg.ema_decay)
     optimizer = torch.optim.AdamW(parameter_groups(model, cfg.weight_decay), lr=lr, betas=(0.9, 0.95))
