@@ -90,7 +90,8 @@ def main() -> None:
     parser.add_argument("--density", type=float, default=0.02, help="neighbours per row as a fraction of N")
     parser.add_argument("--predictions", choices=["plausible", "random"], default="plausible")
     parser.add_argument("--subset", type=int, default=2, help="speaker rows (FRDvs: samples x5) for the loops")
-    parser.add_argument("--prune", action="store_true", help="also time FRDist with exact pruning")
+    parser.add_argument("--compare-screen", action="store_true",
+                        help="also time FRDist without the float32 screen (every pair aligned in float64)")
     parser.add_argument("--frdist-rows", type=int, default=None,
                         help="time the fast FRDist on this many rows only and extrapolate by neighbour count "
                              "(for a full-size run on a shared machine); default: all rows")
@@ -106,13 +107,13 @@ def main() -> None:
     fast_full, fast_cpu = {}, {}
     runs = [("FRCorr", react.fr_corr, (p, lst, indptr, indices), {}),
             ("FRDist", react.fr_dist, (p, lst, indptr, indices), {}),
-            ("FRDist (pruning)", react.fr_dist, (p, lst, indptr, indices), {"prune": True}),
+            ("FRDist (no screen)", react.fr_dist, (p, lst, indptr, indices), {"screen": False}),
             ("FRDiv", react.fr_div, (p,), {}), ("FRVar", react.fr_var, (p,), {}), ("FRDvs", react.fr_dvs, (p,), {}),
             ("FRSyn", react.fr_syn, (p, sp), {}), ("FRSyn_all", react.fr_syn, (p, sp), {"all_reactions": True})]
     dist_rows = slice(0, min(args.frdist_rows or n, n))
     dist_scale = nnz / int(s[dist_rows].sum())
     for name, fn, fn_args, fn_kwargs in runs:
-        if name.endswith("(pruning)") and not args.prune:
+        if name.endswith("(no screen)") and not args.compare_screen:
             continue
         factor = 1.0
         if name.startswith("FRDist") and dist_rows.stop < n:

@@ -130,12 +130,12 @@ def test_every_metric_matches_the_loop_reference(seed, size):
         assert fast[key] == pytest.approx(slow[key], rel=1e-12), key
 
 
-def test_frdist_pruning_does_not_change_the_value():
+def test_frdist_screen_does_not_change_the_value():
     p, listener, _, s = problem(12, n=8, r=2, t=40, density=0.9)
     p32 = p.astype(np.float32)
     (indptr, indices) = react.neighbour_lists(s)
-    a = react.fr_dist_per_reaction(p32, listener.astype(np.float32), indptr, indices, prune=True)
-    b = react.fr_dist_per_reaction(p32, listener.astype(np.float32), indptr, indices, prune=False)
+    a = react.fr_dist_per_reaction(p32, listener.astype(np.float32), indptr, indices, screen=True)
+    b = react.fr_dist_per_reaction(p32, listener.astype(np.float32), indptr, indices, screen=False)
     np.testing.assert_array_equal(a, b)
 
 

@@ -1,4 +1,4 @@
-"""Exact dynamic time warping (tslearn's ``dtw``), fast: SIMD lanes, strips, threads and exact pruning.
+"""Exact dynamic time warping (tslearn's ``dtw``), fast: SIMD lanes, strips, shared cost rows, threads, exact pruning.
 
 Definition (identical to ``tslearn.metrics.dtw`` with default arguments: no window, the full
 T1 x T2 grid)::
@@ -15,20 +15,27 @@ its values equal tslearn's bit for bit (the tests check this); only the schedule
   operation for operation (the transposed grid adds the same costs to the same minima), so pairs are
   grouped by whichever side they share, e.g. all queries that have a given reference as candidate;
 - **strips**: the grid is swept in column strips of :data:`STRIP` columns over all rows, so the strip of
-  the references stays in the L1 cache; the right border of a strip is kept for the next one;
+  the lane series stays in the L1 cache; the right border of a strip is kept for the next one;
 - **groups**: several dimension groups (REACT: AUs 0:15, valence/arousal 15:17, expressions 17:25), each
-  with its own warping path, are aligned in the same sweep; a pair's value is
-  ``0 + w_0 * dtw_0 + w_1 * dtw_1 + ...`` (weights in order);
+  with its own warping path, are aligned in the same sweep, :data:`FUSED` groups per recurrence loop so
+  that their dependency chains overlap; a pair's value is ``0 + w_0 * dtw_0 + w_1 * dtw_1 + ...``
+  (weights in order);
+- **shared cost rows**: when at most half of a shared series' rows are distinct within a group (REACT's
+  binary action-unit occurrences repeat), each distinct row's costs are computed once per strip and the
+  repeated rows read them; the values are the same numbers, computed fewer times;
 - **threads**: queries are spread over numba threads (``prange``).
 
-Minimum over candidates with exact pruning (:func:`min_weighted_dtw`): every warping path crosses every
-column, so after a strip ending at column j, ``m_g = min_i C_g(i, j)`` satisfies ``m_g <= C_g(T1-1, T2-1)``
-exactly in floating point (each cell adds a non-negative cost to a minimum of its predecessors, and
-rounding is monotone). Hence ``lb = 0 + w_0 sqrt(m_0) + ...`` never exceeds the pair's computed value.
-Each query's candidate with the smallest diagonal-path cost (an upper bound of DTW) is computed first;
-every other pair then carries that value as its lane's threshold, and a batch is abandoned only when
-every lane's ``lb`` is strictly greater than its threshold, so the minimum (and the first candidate
-attaining it) is unchanged. The order of the work affects the running time only, never the result.
+Minimum over candidates with a certified float32 screen (:func:`min_weighted_dtw`): when every input
+value is a float32 number (REACT's are) and small enough not to overflow, every pair is first aligned
+by the same kernel in float32 (twice the SIMD lanes per register). Each float32 cost, sum and square root
+rounds with relative error at most u = 2**-24, every term is non-negative and min is exact, so the float32
+value v32 of a pair is within ``eps = (T1 + T2 + D + 4) u`` (relative) of the exact real DTW, and so is
+the float64 value (with u = 2**-53); subnormal results add at most an absolute ``slack``. Hence with
+``m = 4 eps`` the float64 value lies in ``[v32 (1 - m) - slack, v32 (1 + m) + slack]``. For each query
+only the candidates whose lower end does not exceed the smallest upper end are recomputed in float64:
+those include every candidate whose float64 value attains the minimum, so the minimum and the first
+candidate attaining it are exactly those of computing every pair in float64. The screen changes the
+running time only, never a result (tests compare both ways bit for bit).
 """
 
 from __future__ import annotations
@@ -38,177 +45,227 @@ from numba import njit, prange, set_num_threads, get_num_threads
 
 from dyadbench.errors import InputError
 
-LANES = 8
+LANES = 16
 STRIP = 16
+WIDTH = STRIP * LANES
+FUSED = 3  # groups swept together in one recurrence loop (padded with zero-cost groups)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _strip_costs(x, i, strip, n, start, stop, costs, row):
+    """costs[row, k] = 0 + sum_{d=start}^{stop-1} (x[i, d] - strip[d, k])**2 for k < n (dims in order).
+
+    Groups are padded to a multiple of four dims with zeros in both series (see :func:`_pad_groups`):
+    a padding dim adds 0 * 0 = +0.0 to a non-negative sum, which leaves it unchanged, so every pass
+    takes four dims. The first pass starts from t0 * t0, which equals 0.0 + t0 * t0.
+    """
+    for d in range(start, stop, 4):
+        xa = x[i, d]
+        xb = x[i, d + 1]
+        xc = x[i, d + 2]
+        xd = x[i, d + 3]
+        if d == start:
+            for k in range(n):
+                ta = xa - strip[d, k]
+                tb = xb - strip[d + 1, k]
+                tc = xc - strip[d + 2, k]
+                td = xd - strip[d + 3, k]
+                costs[row, k] = ((ta * ta + tb * tb) + tc * tc) + td * td
+        else:
+            for k in range(n):
+                ta = xa - strip[d, k]
+                tb = xb - strip[d + 1, k]
+                tc = xc - strip[d + 2, k]
+                td = xd - strip[d + 3, k]
+                costs[row, k] = (((costs[row, k] + ta * ta) + tb * tb) + tc * tc) + td * td
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _sweep_rows(grid, costs, q0, p0, c0, q1, p1, c1, q2, p2, c2, n):
+    """One grid row of FUSED groups: for each group, with its current grid row q, previous row p and cost
+    row c (lane b of column k at ``k * LANES + b``, column -1 first in the grid rows)::
+
+        grid[q, k + LANES] = costs[c, k] + min(grid[q, k], grid[p, k + LANES], grid[p, k])
+
+    (left, up, diagonal). min is exact, so the order of the comparisons changes no value; the groups'
+    chains are independent, which keeps the vector units busy while each waits on its left neighbour.
+    """
+    for k in range(n):
+        u0 = grid[p0, k + LANES]
+        u1 = grid[p1, k + LANES]
+        u2 = grid[p2, k + LANES]
+        d0 = grid[p0, k]
+        d1 = grid[p1, k]
+        d2 = grid[p2, k]
+        m0 = u0 if u0 < d0 else d0
+        m1 = u1 if u1 < d1 else d1
+        m2 = u2 if u2 < d2 else d2
+        l0 = grid[q0, k]
+        l1 = grid[q1, k]
+        l2 = grid[q2, k]
+        grid[q0, k + LANES] = costs[c0, k] + (l0 if l0 < m0 else m0)
+        grid[q1, k + LANES] = costs[c1, k] + (l1 if l1 < m1 else m1)
+        grid[q2, k + LANES] = costs[c2, k] + (l2 if l2 < m2 else m2)
 
 
 @njit(cache=True, nogil=True)
-def _strip_bound(bnd, rows, lane, weights):
-    """0 + sum_g w_g sqrt(min_i bnd[g, i]) for one lane: a lower bound of the lane's final value."""
-    value = 0.0
-    for g in range(bnd.shape[0]):
-        low = np.inf
-        for i in range(rows):
-            c = bnd[g, (i + 1) * LANES + lane]
-            if c < low:
-                low = c
-        value = value + weights[g] * np.sqrt(low)
-    return value
-
-
-@njit(cache=True, nogil=True)
-def _align_lanes(x, ys, gstart, gstop, weights, thresholds, out):
+def _align_lanes(x, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
     """Align the shared series ``x`` (T1, D) against the LANES series in ``ys`` (D, T2 * LANES).
 
-    Writes ``out[b] = 0 + sum_g weights[g] * sqrt(C_g(T1-1, T2-1))`` for each lane b and returns False;
-    returns True (``out`` untouched) when the batch was abandoned because every lane's lower bound
-    exceeded its ``thresholds[b]`` (inf: never abandon).
+    Rows of ``x`` that repeat within a group share one cost row: for group g, ``rep[rep_ptr[g]:rep_ptr[g+1]]``
+    are the distinct rows whose costs are computed once per strip, and ``slot[g, i]`` is row i's entry
+    among them (-1: group g is not tabulated, its costs are computed row by row). Same values either way.
+
+    Writes ``out[b] = 0 + sum_g weights[g] * sqrt(C_g(T1-1, T2-1))`` for each lane b. The grid is
+    computed in the dtype of ``x`` and ``ys`` (float64: exact; float32: the screen's approximation).
     """
     t1 = x.shape[0]
     t2 = ys.shape[1] // LANES
     n_groups = gstart.shape[0]
-    width = STRIP * LANES
+    padded = -(-n_groups // FUSED) * FUSED
+    n_rep = rep.shape[0]
     # bnd[g, (i + 1) * LANES + b] = C_g(i, j0 - 1) of lane b (left border of the current strip)
-    bnd = np.full((n_groups, (t1 + 1) * LANES), np.inf)
+    bnd = np.full((padded, (t1 + 1) * LANES), np.inf, dtype=ys.dtype)
     bnd[:, :LANES] = 0.0
-    prev = np.empty((n_groups, (STRIP + 1) * LANES))
-    cur = np.empty((n_groups, (STRIP + 1) * LANES))
-    cost = np.empty((n_groups, width))
-    strip_y = np.empty((ys.shape[0], width))
+    grid = np.empty((2 * padded, (STRIP + 1) * LANES), dtype=ys.dtype)  # rows 2g + 0/1: previous/current
+    costs = np.zeros((n_rep + padded, WIDTH), dtype=ys.dtype)  # padding groups keep their zero cost row
+    strip = np.empty((ys.shape[0], WIDTH), dtype=ys.dtype)
+    cost_of = np.empty(padded, dtype=np.int64)
+    for g in range(n_groups, padded):
+        cost_of[g] = n_rep + g
     for j0 in range(0, t2, STRIP):
         w = min(STRIP, t2 - j0)
         n = w * LANES
         for d in range(ys.shape[0]):
-            strip_y[d, :n] = ys[d, j0 * LANES:j0 * LANES + n]
+            for k in range(n):
+                strip[d, k] = ys[d, j0 * LANES + k]
         for g in range(n_groups):
-            prev[g, :LANES] = bnd[g, :LANES]
-            prev[g, LANES:] = np.inf
+            for s in range(rep_ptr[g], rep_ptr[g + 1]):
+                _strip_costs(x, rep[s], strip, n, gstart[g], gstop[g], costs, s)
+        for g in range(padded):
+            for b in range(LANES):
+                grid[2 * g, b] = bnd[g, b]
+            for k in range(LANES, n + LANES):
+                grid[2 * g, k] = np.inf
         for i in range(t1):
-            xi = x[i]
-            for g in range(n_groups):
-                c = cost[g]
-                d = gstart[g]
-                stop = gstop[g]
-                xv = xi[d]
-                yr = strip_y[d]
-                for k in range(n):
-                    t = xv - yr[k]
-                    c[k] = t * t  # == 0.0 + t * t
-                d += 1
-                while d + 3 < stop:  # four dims per pass: same operations, same order
-                    xa = xi[d]
-                    ya = strip_y[d]
-                    xb = xi[d + 1]
-                    yb = strip_y[d + 1]
-                    xc = xi[d + 2]
-                    yc = strip_y[d + 2]
-                    xd = xi[d + 3]
-                    yd = strip_y[d + 3]
-                    for k in range(n):
-                        ta = xa - ya[k]
-                        tb = xb - yb[k]
-                        tc = xc - yc[k]
-                        td = xd - yd[k]
-                        c[k] = (((c[k] + ta * ta) + tb * tb) + tc * tc) + td * td
-                    d += 4
-                while d < stop:
-                    xv = xi[d]
-                    yr = strip_y[d]
-                    for k in range(n):
-                        t = xv - yr[k]
-                        c[k] += t * t
-                    d += 1
+            p = i & 1
+            q = 1 - p
             base = (i + 1) * LANES
             for g in range(n_groups):
-                q = cur[g]
-                p = prev[g]
-                c = cost[g]
-                b_row = bnd[g]
+                s = slot[g, i]
+                if s < 0:
+                    s = n_rep + g
+                    _strip_costs(x, i, strip, n, gstart[g], gstop[g], costs, s)
+                cost_of[g] = s
+            for g in range(padded):
                 for b in range(LANES):
-                    q[b] = b_row[base + b]
-                for k in range(n):
-                    left = q[k]
-                    up = p[k + LANES]
-                    diag = p[k]
-                    m = left if left < up else up
-                    m = m if m < diag else diag
-                    q[k + LANES] = c[k] + m
+                    grid[2 * g + q, b] = bnd[g, base + b]
+            for g in range(0, padded, FUSED):
+                _sweep_rows(grid, costs, 2 * g + q, 2 * g + p, cost_of[g], 2 * g + 2 + q, 2 * g + 2 + p,
+                            cost_of[g + 1], 2 * g + 4 + q, 2 * g + 4 + p, cost_of[g + 2], n)
+            for g in range(padded):
                 for b in range(LANES):
-                    b_row[base + b] = q[n + b]
-            prev, cur = cur, prev
+                    bnd[g, base + b] = grid[2 * g + q, n + b]
         bnd[:, :LANES] = np.inf
-        if j0 + w < t2:
-            alive = False
-            for b in range(LANES):
-                if thresholds[b] == np.inf or _strip_bound(bnd, t1, b, weights) <= thresholds[b]:
-                    alive = True
-                    break
-            if not alive:
-                return True
     for b in range(LANES):
         value = 0.0
         for g in range(n_groups):
             value = value + weights[g] * np.sqrt(bnd[g, t1 * LANES + b])
         out[b] = value
-    return False
 
 
 @njit(cache=True, nogil=True)
-def _interleave(series, idx, count, ys):
-    """ys[d, t * LANES + b] = series[idx[min(b, count - 1)], t, d] as float64 (missing lanes repeat the last)."""
+def _interleave(series, idx, count, cols, ys):
+    """ys[e, t * LANES + b] = series[idx[min(b, count - 1)], t, cols[e]] (in the dtype of ys), 0 where
+    cols[e] < 0 (padding dims); missing lanes repeat the last series."""
     for b in range(LANES):
         s = series[idx[min(b, count - 1)]]
         for t in range(s.shape[0]):
             row = s[t]
-            for d in range(row.shape[0]):
-                ys[d, t * LANES + b] = row[d]
+            for e in range(cols.shape[0]):
+                ys[e, t * LANES + b] = row[cols[e]] if cols[e] >= 0 else 0.0
 
 
-@njit(cache=True, parallel=True)
-def _diagonal_bounds(shared, lanes, pair_s, pair_l, gstart, gstop, weights):
-    """Weighted cost of the diagonal path of every pair (equal lengths): an upper bound of its value,
-    used only to order the work."""
-    out = np.empty(pair_s.shape[0])
-    for p in prange(pair_s.shape[0]):
-        x = shared[pair_s[p]]
-        y = lanes[pair_l[p]]
-        value = 0.0
-        for g in range(gstart.shape[0]):
-            acc = 0.0
-            for t in range(x.shape[0]):
-                for d in range(gstart[g], gstop[g]):
-                    diff = x[t, d] - y[t, d]
-                    acc += diff * diff
-            value += weights[g] * np.sqrt(acc)
-        out[p] = value
+@njit(cache=True, nogil=True)
+def _pad_columns(x, cols):
+    """x[:, cols] with zeros where cols < 0 (padding dims)."""
+    out = np.zeros((x.shape[0], cols.shape[0]), dtype=x.dtype)
+    for t in range(x.shape[0]):
+        for e in range(cols.shape[0]):
+            if cols[e] >= 0:
+                out[t, e] = x[t, cols[e]]
     return out
 
 
 @njit(cache=True, parallel=True)
-def _batched_values(shared, lanes, pair_s, pair_l, thresholds, batch_start, gstart, gstop, weights):
-    """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), computed LANES pairs at a time.
+def _batched_values(shared, lanes, pair_s, pair_l, batch_start, weights, rep, rep_ptr, slot, cols, pstart, pstop):
+    """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), computed LANES pairs at a time in the
+    dtype of ``shared``.
 
     Pairs are sorted by ``pair_s``; batch b is ``batch_start[b]:batch_start[b+1]`` (one shared series,
-    at most LANES pairs). A batch whose every lane exceeds its threshold is abandoned: its values are inf.
+    at most LANES pairs). ``rep``/``rep_ptr``/``slot``: the repeated rows of each shared series
+    (:func:`_repeated_rows`); ``cols``/``pstart``/``pstop``: the groups' dims padded to multiples of four
+    (:func:`_pad_groups`).
     """
-    values = np.full(pair_s.shape[0], np.inf)
+    values = np.empty(pair_s.shape[0])
     for b in prange(batch_start.shape[0] - 1):
         first = batch_start[b]
         count = batch_start[b + 1] - first
-        ys = np.empty((lanes.shape[2], lanes.shape[1] * LANES))
+        m = pair_s[first]
+        ys = np.empty((cols.shape[0], lanes.shape[1] * LANES), dtype=shared.dtype)
         idx = np.empty(LANES, dtype=np.int64)
-        limit = np.full(LANES, np.inf)
         out = np.empty(LANES)
         for lane in range(count):
             idx[lane] = pair_l[first + lane]
-            limit[lane] = thresholds[first + lane]
-        for lane in range(count, LANES):
-            limit[lane] = -np.inf  # padding lanes never keep a batch alive
-        _interleave(lanes, idx, count, ys)
-        if not _align_lanes(shared[pair_s[first]], ys, gstart, gstop, weights, limit, out):
-            for lane in range(count):
-                values[first + lane] = out[lane]
+        _interleave(lanes, idx, count, cols, ys)
+        ptr = rep_ptr[m]
+        _align_lanes(_pad_columns(shared[m], cols), ys, pstart, pstop, weights, out, rep[ptr[0]:ptr[-1]],
+                     ptr - ptr[0], slot[m])
+        for lane in range(count):
+            values[first + lane] = out[lane]
     return values
+
+
+def _pad_groups(gstart, gstop):
+    """Each group's dims laid out contiguously and padded with zeros to a multiple of four.
+
+    Returns ``cols`` (padded dim -> source dim, -1 for padding) and the groups' padded (start, stop).
+    """
+    cols, pstart, pstop = [], [], []
+    for lo, hi in zip(gstart, gstop):
+        pstart.append(len(cols))
+        cols += list(range(lo, hi)) + [-1] * (-(hi - lo) % 4)
+        pstop.append(len(cols))
+    return (np.array(cols, dtype=np.int64), np.array(pstart, dtype=np.int64), np.array(pstop, dtype=np.int64))
+
+
+def _repeated_rows(shared: np.ndarray, used: np.ndarray, gstart, gstop):
+    """For each used shared series and group: its distinct rows, when at most half of the rows are distinct.
+
+    Returns ``rep`` (flat row indices), ``rep_ptr`` (M, G + 1) (series m, group g: ``rep[rep_ptr[m, g]:
+    rep_ptr[m, g + 1]]``) and ``slot`` (M, G, T) (row i of group g -> index within the series' block of
+    ``rep``, or -1 when the group is computed row by row). Rows are compared by their bytes, so rows that
+    are equal as numbers but differ in bytes (0.0 and -0.0) are merely not shared.
+    """
+    m_total, t, _ = shared.shape
+    n_groups = len(gstart)
+    slot = np.full((m_total, n_groups, t), -1, dtype=np.int64)
+    rep_ptr = np.zeros((m_total, n_groups + 1), dtype=np.int64)
+    reps, total = [], 0
+    for m in np.unique(used):
+        start = total
+        for g, (lo, hi) in enumerate(zip(gstart, gstop)):
+            rep_ptr[m, g] = total
+            block = np.ascontiguousarray(shared[m, :, lo:hi])
+            keys = block.view(np.dtype((np.void, block.itemsize * block.shape[1]))).ravel()
+            _, first, inverse = np.unique(keys, return_index=True, return_inverse=True)
+            if 2 * len(first) <= t:
+                slot[m, g] = total - start + inverse.ravel()
+                reps.append(first)
+                total += len(first)
+        rep_ptr[m, n_groups] = total
+    rep = np.concatenate(reps).astype(np.int64) if reps else np.zeros(0, dtype=np.int64)
+    return rep, rep_ptr, slot
 
 
 # --- public API ------------------------------------------------------------------------------------
@@ -248,14 +305,14 @@ def _batches(sorted_shared: np.ndarray) -> np.ndarray:
     return np.concatenate([np.arange(a, b, LANES) for a, b in runs] + [[n]]).astype(np.int64)
 
 
-def _values(shared, lanes, pair_s, pair_l, thresholds, order_key, groups) -> np.ndarray:
-    """Values of the listed pairs (inf where abandoned), in the given pair order."""
+def _values(shared, lanes, pair_s, pair_l, groups) -> np.ndarray:
+    """Values of the listed pairs, in the given pair order, computed in the dtype of ``shared``."""
     if len(pair_s) == 0:
         return np.empty(0)
-    order = np.lexsort((order_key, pair_s))
+    order = np.argsort(pair_s, kind="stable")
     values = np.empty(len(pair_s))
-    values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], thresholds[order],
-                                    _batches(pair_s[order]), *groups)
+    values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], _batches(pair_s[order]), groups[2],
+                                    *_repeated_rows(shared, pair_s, groups[0], groups[1]), *_pad_groups(*groups[:2]))
     return values
 
 
@@ -285,7 +342,7 @@ def weighted_dtw_pairs(queries: np.ndarray, refs: np.ndarray, query_index, ref_i
         raise InputError("pairs", "an index is out of range")
     groups = _groups(groups, queries.shape[2])
     # DTW is symmetric operation for operation, so the reference can be the shared series of a batch
-    return _values(refs, queries, ri, qi, np.full(len(qi), np.inf), np.zeros(len(qi)), groups)
+    return _values(refs, queries, ri, qi, groups)
 
 
 def dtw(x, y) -> float:
@@ -304,7 +361,26 @@ def dtw(x, y) -> float:
     return float(weighted_dtw_pairs(x[None], y[None], [0], [0])[0])
 
 
-def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool = False,
+def _screen_bounds(approx, t1: int, t2: int, dims: int, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Interval certain to hold the float64 value of each pair, from its float32 value (module docstring)."""
+    eps = (t1 + t2 + dims + 4) * 2.0 ** -24
+    margin = 4 * eps
+    # subnormal float32 results: each of the <= (t1 + t2) (dims + 3) operations on a path errs by at most
+    # 2**-149 absolutely; the square root turns an absolute error e of a sum into at most sqrt(e)
+    slack = 2 * max(1.0, float(weights.sum())) * np.sqrt((t1 + t2) * (dims + 3) * 2.0 ** -149)
+    return approx * (1 - margin) - slack, approx * (1 + margin) + slack
+
+
+def _screenable(queries: np.ndarray, refs: np.ndarray) -> bool:
+    """True when every value is a float32 number and no float32 grid sum can overflow."""
+    for a in (queries, refs):
+        if a.dtype != np.float32 and not np.array_equal(a.astype(np.float32), a):
+            return False
+    largest = max(float(np.abs(queries).max(initial=0)), float(np.abs(refs).max(initial=0)))
+    return (queries.shape[1] + refs.shape[1]) * queries.shape[2] * (2 * largest) ** 2 < 1e37
+
+
+def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: bool = True,
                      threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each query q: the minimum over its candidates r of the weighted grouped DTW, and where.
 
@@ -313,11 +389,11 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
     least one. Returns ``(values (Q,), position (Q,))`` where position is the index *within the
     candidate list* of the first candidate attaining the minimum.
 
-    Work is batched by reference (one reference shared by LANES queries). With ``prune``, each query's
-    candidate of smallest diagonal-path cost is computed first; every other pair then carries its
-    query's value as a threshold and batches are abandoned exactly as the module docstring describes
-    (same results; less work only when candidates differ clearly, else the extra first pass costs more).
-    ``threads`` caps numba's threads for this call.
+    Work is batched by reference (one reference shared by LANES queries). With ``screen`` (default),
+    when the inputs allow it, every pair is first aligned in float32 and only the candidates that can
+    still attain a query's minimum are aligned in float64 (see the module docstring): the same values
+    and positions as ``screen=False``, which aligns every pair in float64. ``threads`` caps numba's
+    threads for this call.
     """
     queries, refs = _check_series(queries, refs)
     indptr = np.asarray(indptr, dtype=np.int64)
@@ -337,23 +413,15 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, prune: bool
     if threads is not None:
         set_num_threads(max(1, min(int(threads), previous)))
     try:
-        values = np.full(len(indices), np.inf)
-        if prune:
-            equal_lengths = queries.shape[1] == refs.shape[1]
-            ub = (_diagonal_bounds(refs, queries, indices, pair_q, *groups) if equal_lengths
-                  else np.zeros(len(indices)))
-            by_bound = np.lexsort((position, ub, pair_q))
-            first = by_bound[np.concatenate([[0], np.flatnonzero(np.diff(pair_q[by_bound])) + 1])]
-            values[first] = _values(refs, queries, indices[first], pair_q[first], np.full(len(first), np.inf),
-                                    np.zeros(len(first)), groups)
-            rest = np.setdiff1d(np.arange(len(indices)), first)
-            limit = values[first][pair_q[rest]]  # first holds one pair per query, in query order
-            # hopeless pairs (diagonal bound far above the query's value) share batches: more abandoning
-            with np.errstate(divide="ignore", invalid="ignore"):
-                hopeless = np.nan_to_num(-ub[rest] / limit)
-            values[rest] = _values(refs, queries, indices[rest], pair_q[rest], limit, hopeless, groups)
+        if screen and _screenable(queries, refs):
+            approx = _values(refs.astype(np.float32), queries.astype(np.float32, copy=False), indices, pair_q,
+                             groups)
+            low, high = _screen_bounds(approx, queries.shape[1], refs.shape[1], queries.shape[2], groups[2])
+            keep = low <= np.minimum.reduceat(high, indptr[:-1])[pair_q]
+            values = np.full(len(indices), np.inf)
+            values[keep] = _values(refs, queries, indices[keep], pair_q[keep], groups)
         else:
-            values = _values(refs, queries, indices, pair_q, values, np.zeros(len(indices)), groups)
+            values = _values(refs, queries, indices, pair_q, groups)
     finally:
         set_num_threads(previous)
     best = np.minimum.reduceat(values, indptr[:-1])

@@ -158,7 +158,7 @@ def fr_corr(p, lst, indptr, indices) -> float:
     return float(np.mean(_sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))))
 
 
-def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = False, threads: int | None = None,
+def fr_dist_per_reaction(p, lst, indptr, indices, *, screen: bool = True, threads: int | None = None,
                          progress: bool = False) -> np.ndarray:
     """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
     n, r = p.shape[:2]
@@ -169,14 +169,14 @@ def fr_dist_per_reaction(p, lst, indptr, indices, *, prune: bool = False, thread
         ptr = _chunk_indptr(indptr, rows, r)
         cand = np.concatenate([np.tile(indices[indptr[k]:indptr[k + 1]], r) for k in range(rows.start, rows.stop)])
         queries = np.ascontiguousarray(p[rows]).reshape(-1, p.shape[2], DIM)  # float32, widened in the kernel
-        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, prune=prune, threads=threads)
+        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, screen=screen, threads=threads)
         out[rows] = values.reshape(-1, r)
         bar.update(rows.stop - rows.start)
     bar.close()
     return out
 
 
-def fr_dist(p, lst, indptr, indices, *, prune: bool = False, threads: int | None = None) -> float:
+def fr_dist(p, lst, indptr, indices, *, screen: bool = True, threads: int | None = None) -> float:
     """FRDist (lower is better).
 
     .. math:: \\mathrm{FRDist} = \\frac{1}{N}\\sum_k \\sum_i \\min_{j: S_{kj}=1}
@@ -185,7 +185,7 @@ def fr_dist(p, lst, indptr, indices, *, prune: bool = False, threads: int | None
 
     with exact DTW (:mod:`dyadbench.metrics.dtw`), one warping path per group.
     """
-    per = fr_dist_per_reaction(p, lst, indptr, indices, prune=prune, threads=threads)
+    per = fr_dist_per_reaction(p, lst, indptr, indices, screen=screen, threads=threads)
     return float(np.mean(_sum_over_reactions(per)))
 
 
@@ -277,7 +277,7 @@ def fr_syn(p, sp, *, all_reactions: bool = False) -> float:
 
 
 def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
-             prune: bool = False, threads: int | None = None,
+             screen: bool = True, threads: int | None = None,
              progress: bool = False) -> tuple[dict[str, float], dict[str, np.ndarray]]:
     """:func:`score` plus each speaker sample's contribution: ``(metrics, per_sample)``.
 
@@ -287,7 +287,7 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
     """
     p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
     corr = _sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))
-    dist = _sum_over_reactions(fr_dist_per_reaction(p, lst, indptr, indices, prune=prune, threads=threads,
+    dist = _sum_over_reactions(fr_dist_per_reaction(p, lst, indptr, indices, screen=screen, threads=threads,
                                                     progress=progress))
     div = fr_div_per_sample(p)
     offsets = fr_syn_offsets(p, sp, all_reactions=True)
@@ -308,15 +308,15 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
 
 
 def score(predictions, listener, speaker, neighbours, *, reactions: int | None = REACTIONS,
-          prune: bool = False, threads: int | None = None) -> dict[str, float]:
+          screen: bool = True, threads: int | None = None) -> dict[str, float]:
     """Every metric of the suite: a dict keyed ``FRCorr FRDist FRDiv FRVar FRDvs FRSyn FRSyn_all``.
 
     ``predictions`` (N, R, T, 25), ``listener`` and ``speaker`` (N, T, 25), ``neighbours`` (N, N) of 0/1.
     Raises :class:`InputError` for wrong shapes, a wrong R (``reactions=None`` accepts any), NaN/inf
-    values, or a neighbour row without any 1 (naming the row). ``prune`` (exact early abandoning, see
-    :mod:`dyadbench.metrics.dtw`; off by default: it cost ~15% more than it saved on the benchmark's
-    data) and ``threads`` only change FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist and
-    FRSyn (see :data:`HIGHER_IS_BETTER`).
+    values, or a neighbour row without any 1 (naming the row). ``screen`` (the certified float32 screen
+    of :func:`dyadbench.metrics.dtw.min_weighted_dtw`; same values either way) and ``threads`` only
+    change FRDist's running time. Higher is better for FRCorr, FRDiv, FRVar, FRDvs; lower for FRDist
+    and FRSyn (see :data:`HIGHER_IS_BETTER`).
     """
-    return evaluate(predictions, listener, speaker, neighbours, reactions=reactions, prune=prune,
+    return evaluate(predictions, listener, speaker, neighbours, reactions=reactions, screen=screen,
                     threads=threads)[0]
