@@ -242,8 +242,34 @@ def fr_var(p) -> float:
     .. math:: \\mathrm{FRVar} = \\frac{1}{N R\\, 25}\\sum_{k,i,c} \\frac{1}{T-1}\\sum_t
               (P_{k,i,t,c} - \\bar P_{k,i,c})^2
     """
-    parts = [np.var(p[rows].astype(np.float64), axis=2, ddof=1) for rows in _row_chunks(len(p))]
-    return float(np.mean(np.concatenate(parts)))
+    return float(np.mean(time_variances(p)))
+
+
+@njit(cache=True, parallel=True)
+def _time_variances(p):
+    n, r, t, d = p.shape
+    out = np.empty((n, r, d))
+    for k in prange(n):
+        for i in range(r):
+            mean = np.zeros(d)
+            for s in range(t):
+                for c in range(d):
+                    mean[c] += np.float64(p[k, i, s, c])
+            for c in range(d):
+                mean[c] /= t
+            acc = np.zeros(d)
+            for s in range(t):
+                for c in range(d):
+                    dev = np.float64(p[k, i, s, c]) - mean[c]
+                    acc[c] += dev * dev
+            for c in range(d):
+                out[k, i, c] = acc[c] / (t - 1)
+    return out
+
+
+def time_variances(p) -> np.ndarray:
+    """(N, R, 25): unbiased (ddof=1) variance over time of each predicted feature, in float64."""
+    return _time_variances(np.ascontiguousarray(p))
 
 
 def fr_dvs(p) -> float:
@@ -300,8 +326,7 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
         "FRSyn": float32_mean(offsets[:, 0]),
         "FRSyn_all": float32_mean(offsets.ravel()),
     }
-    var = np.concatenate([np.var(p[rows].astype(np.float64), axis=2, ddof=1).mean(axis=(1, 2))
-                          for rows in _row_chunks(len(p))])
+    var = time_variances(p).mean(axis=(1, 2))
     per_sample = {"FRCorr": corr, "FRDist": dist, "FRDiv": div, "FRVar": var,
                   "FRSyn": offsets[:, 0].astype(np.float64)}
     return metrics, per_sample
