@@ -81,6 +81,26 @@ def _strip_costs(x, i, strip, n, start, stop, costs, row):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _strip_costs_per_lane(xr, strip, n, start, stop, costs, row):
+    """:func:`_strip_costs` with a different shared frame per lane: ``xr[d, k]`` replaces ``x[i, d]``."""
+    for d in range(start, stop, 4):
+        if d == start:
+            for k in range(n):
+                ta = xr[d, k] - strip[d, k]
+                tb = xr[d + 1, k] - strip[d + 1, k]
+                tc = xr[d + 2, k] - strip[d + 2, k]
+                td = xr[d + 3, k] - strip[d + 3, k]
+                costs[row, k] = ((ta * ta + tb * tb) + tc * tc) + td * td
+        else:
+            for k in range(n):
+                ta = xr[d, k] - strip[d, k]
+                tb = xr[d + 1, k] - strip[d + 1, k]
+                tc = xr[d + 2, k] - strip[d + 2, k]
+                td = xr[d + 3, k] - strip[d + 3, k]
+                costs[row, k] = (((costs[row, k] + ta * ta) + tb * tb) + tc * tc) + td * td
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _sweep_rows(grid, costs, q0, p0, c0, q1, p1, c1, q2, p2, c2, n):
     """One grid row of FUSED groups: for each group, with its current grid row q, previous row p and cost
     row c (lane b of column k at ``k * LANES + b``, column -1 first in the grid rows)::
@@ -109,8 +129,10 @@ def _sweep_rows(grid, costs, q0, p0, c0, q1, p1, c1, q2, p2, c2, n):
 
 
 @njit(cache=True, nogil=True)
-def _align_lanes(x, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
-    """Align the shared series ``x`` (T1, D) against the LANES series in ``ys`` (D, T2 * LANES).
+def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
+    """Align the shared series ``x`` (T1, D) against the LANES series in ``ys`` (D, T2 * LANES); or, when
+    ``xl`` is not empty, lane b's own series ``xl[:, t * LANES + b]`` (D, T1 * LANES) against lane b of
+    ``ys`` (``x`` is then unused and nothing is tabulated).
 
     Rows of ``x`` that repeat within a group share one cost row: for group g, ``rep[rep_ptr[g]:rep_ptr[g+1]]``
     are the distinct rows whose costs are computed once per strip, and ``slot[g, i]`` is row i's entry
@@ -119,7 +141,8 @@ def _align_lanes(x, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
     Writes ``out[b] = 0 + sum_g weights[g] * sqrt(C_g(T1-1, T2-1))`` for each lane b. The grid is
     computed in the dtype of ``x`` and ``ys`` (float64: exact; float32: the screen's approximation).
     """
-    t1 = x.shape[0]
+    per_lane = xl.shape[0] > 0
+    t1 = xl.shape[1] // LANES if per_lane else x.shape[0]
     t2 = ys.shape[1] // LANES
     n_groups = gstart.shape[0]
     padded = -(-n_groups // FUSED) * FUSED
@@ -130,6 +153,7 @@ def _align_lanes(x, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
     grid = np.empty((2 * padded, (STRIP + 1) * LANES), dtype=ys.dtype)  # rows 2g + 0/1: previous/current
     costs = np.zeros((n_rep + padded, WIDTH), dtype=ys.dtype)  # padding groups keep their zero cost row
     strip = np.empty((ys.shape[0], WIDTH), dtype=ys.dtype)
+    xr = np.empty((xl.shape[0], WIDTH), dtype=ys.dtype)  # per-lane mode: row i of every lane, per column
     cost_of = np.empty(padded, dtype=np.int64)
     for g in range(n_groups, padded):
         cost_of[g] = n_rep + g
@@ -151,11 +175,19 @@ def _align_lanes(x, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
             p = i & 1
             q = 1 - p
             base = (i + 1) * LANES
+            if per_lane:
+                for d in range(xl.shape[0]):
+                    for k in range(0, n, LANES):
+                        for b in range(LANES):
+                            xr[d, k + b] = xl[d, i * LANES + b]
             for g in range(n_groups):
-                s = slot[g, i]
+                s = -1 if per_lane else slot[g, i]
                 if s < 0:
                     s = n_rep + g
-                    _strip_costs(x, i, strip, n, gstart[g], gstop[g], costs, s)
+                    if per_lane:
+                        _strip_costs_per_lane(xr, strip, n, gstart[g], gstop[g], costs, s)
+                    else:
+                        _strip_costs(x, i, strip, n, gstart[g], gstop[g], costs, s)
                 cost_of[g] = s
             for g in range(padded):
                 for b in range(LANES):
@@ -219,8 +251,31 @@ def _batched_values(shared, lanes, pair_s, pair_l, batch_start, weights, rep, re
             idx[lane] = pair_l[first + lane]
         _interleave(lanes, idx, count, cols, ys)
         ptr = rep_ptr[m]
-        _align_lanes(_pad_columns(shared[m], cols), ys, pstart, pstop, weights, out, rep[ptr[0]:ptr[-1]],
-                     ptr - ptr[0], slot[m])
+        _align_lanes(_pad_columns(shared[m], cols), np.empty((0, 0), dtype=shared.dtype), ys, pstart, pstop,
+                     weights, out, rep[ptr[0]:ptr[-1]], ptr - ptr[0], slot[m])
+        for lane in range(count):
+            values[first + lane] = out[lane]
+    return values
+
+
+@njit(cache=True, parallel=True)
+def _paired_values(shared, lanes, pair_s, pair_l, weights, cols, pstart, pstop):
+    """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), LANES consecutive pairs at a time with
+    both series per lane: full lanes when the pairs share no series (the screen's float64 pass)."""
+    values = np.empty(pair_s.shape[0])
+    no_rep = np.zeros(0, dtype=np.int64)
+    no_ptr = np.zeros(pstart.shape[0] + 1, dtype=np.int64)
+    no_slot = np.zeros((pstart.shape[0], 0), dtype=np.int64)
+    for b in prange((pair_s.shape[0] + LANES - 1) // LANES):
+        first = b * LANES
+        count = min(LANES, pair_s.shape[0] - first)
+        xl = np.empty((cols.shape[0], shared.shape[1] * LANES), dtype=shared.dtype)
+        ys = np.empty((cols.shape[0], lanes.shape[1] * LANES), dtype=shared.dtype)
+        out = np.empty(LANES)
+        _interleave(shared, pair_s[first:first + count], count, cols, xl)
+        _interleave(lanes, pair_l[first:first + count], count, cols, ys)
+        _align_lanes(np.empty((0, cols.shape[0]), dtype=shared.dtype), xl, ys, pstart, pstop, weights, out, no_rep,
+                     no_ptr, no_slot)
         for lane in range(count):
             values[first + lane] = out[lane]
     return values
@@ -306,13 +361,23 @@ def _batches(sorted_shared: np.ndarray) -> np.ndarray:
 
 
 def _values(shared, lanes, pair_s, pair_l, groups) -> np.ndarray:
-    """Values of the listed pairs, in the given pair order, computed in the dtype of ``shared``."""
+    """Values of the listed pairs, in the given pair order, computed in the dtype of ``shared``.
+
+    Pairs are batched by shared series (one broadcast series, repeated rows tabulated) unless that
+    would leave most lanes empty (pairs that share little, as in the screen's float64 pass); then
+    LANES arbitrary pairs form a batch. The values are the same either way.
+    """
     if len(pair_s) == 0:
         return np.empty(0)
     order = np.argsort(pair_s, kind="stable")
+    batches = _batches(pair_s[order])
     values = np.empty(len(pair_s))
-    values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], _batches(pair_s[order]), groups[2],
-                                    *_repeated_rows(shared, pair_s, groups[0], groups[1]), *_pad_groups(*groups[:2]))
+    cols, pstart, pstop = _pad_groups(*groups[:2])
+    if len(batches) - 1 > 2 * -(-len(pair_s) // LANES):
+        values[order] = _paired_values(shared, lanes, pair_s[order], pair_l[order], groups[2], cols, pstart, pstop)
+    else:
+        values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], batches, groups[2],
+                                        *_repeated_rows(shared, pair_s, groups[0], groups[1]), cols, pstart, pstop)
     return values
 
 

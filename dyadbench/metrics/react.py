@@ -38,7 +38,7 @@ DTW_GROUPS = ((0, 15, 1 / 15), (15, 17, 1.0), (17, 25, 1 / 8))
 #: rows of the prediction array processed at once (bounds memory to ~chunk * R * T * 25 float64)
 ROW_CHUNK = 64
 #: FRDist's rows per call: larger calls fill more SIMD lanes with pairs that share a reference
-DTW_ROW_CHUNK = 256
+DTW_ROW_CHUNK = 512
 
 
 @dataclass(frozen=True)
