@@ -14,6 +14,8 @@ its values equal tslearn's bit for bit (the tests check this); only the schedule
   shared series' frame is broadcast; the other series are stored lane-interleaved). DTW is symmetric
   operation for operation (the transposed grid adds the same costs to the same minima), so pairs are
   grouped by whichever side they share, e.g. all queries that have a given reference as candidate;
+  pairs that share nothing (the screen's float64 pass below) are aligned LANES at a time with each
+  lane's own series on both sides;
 - **strips**: the grid is swept in column strips of :data:`STRIP` columns over all rows, so the strip of
   the lane series stays in the L1 cache; the right border of a strip is kept for the next one;
 - **groups**: several dimension groups (REACT: AUs 0:15, valence/arousal 15:17, expressions 17:25), each
