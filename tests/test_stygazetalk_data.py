@@ -108,3 +108,40 @@ def test_wav2vec_features_need_local_weights_and_say_so():
         feature_dim(cfg)
     with pytest.raises(ConfigError, match="wav2vec"):
         feature_dim(replace(cfg, wav2vec_path="/nonexistent/wav2vec2-base-960h"))
+
+
+def test_cross_session_retrieval_never_matches_a_window_of_its_own_session():
+    # windows 0, 1 are session A (speaker x), 2 is session B (speaker x), 3 is session C (speaker y).
+    # Query 0's nearest window overall is 1 (same session); across sessions it is 3 (speaker y: a miss).
+    emb = np.array([[1.0, 0.0], [0.99, 0.01], [0.0, 1.0], [0.9, 0.1]])
+    speakers, sessions = ["x", "x", "x", "y"], ["A", "A", "B", "C"]
+    acc, chance = retrieval_accuracy(emb, speakers)
+    assert acc == pytest.approx(2 / 4)  # 0->1, 1->0 hit (session A's twin); 2->3, 3->0 miss
+    acc_x, chance_x = retrieval_accuracy(emb, speakers, q_sessions=sessions, g_sessions=sessions)
+    # candidates: 0,1 -> {2, 3}: nearest 3 (miss); 2 -> {0, 1, 3}: nearest 3 (miss); 3 -> {0, 1, 2}: 0 (miss)
+    assert acc_x == 0.0
+    assert chance_x == pytest.approx((1 / 2 + 1 / 2 + 2 / 3 + 0 / 3) / 4)
+    # a gallery from other sessions of the same speakers
+    acc_g, _ = retrieval_accuracy(emb[:1], ["x"], emb[1:], speakers[1:], q_sessions=["A"], g_sessions=sessions[1:])
+    assert acc_g == 0.0  # window 1 (session A) excluded, window 3 (speaker y) nearest
+    with pytest.raises(ValueError, match="own session"):
+        retrieval_accuracy(emb[:2], speakers[:2], q_sessions=sessions[:2], g_sessions=sessions[:2])
+    with pytest.raises(ValueError, match="both"):
+        retrieval_accuracy(emb, speakers, q_sessions=sessions)
+
+
+def test_same_speaker_positives_come_from_the_speaker_and_never_overlap_the_anchor():
+    rng = np.random.default_rng(1)
+    segs = [Segment(f"s{i}", f"spk{i % 3}", 0, np.zeros((400, 7), np.float32), np.zeros(0, np.float32))
+            for i in range(6)]
+    a, b = sample_style_pairs(segs, rng, batch=12, window=50, gap_max=5, min_anchor_gap=100,
+                              positives="same-speaker")
+    other_session = 0
+    for (ia, sa), (ib, sb) in zip(a, b):
+        assert segs[ia].speaker == segs[ib].speaker and 0 <= sb <= 350
+        if ia == ib:
+            assert abs(sb - sa) >= 50
+        other_session += ia != ib
+    assert other_session > 0  # the speaker's other session is drawn too
+    with pytest.raises(InputError, match="positives"):
+        sample_style_pairs(segs, rng, batch=2, window=50, gap_max=5, min_anchor_gap=100, positives="near")

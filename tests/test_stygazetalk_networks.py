@@ -229,9 +229,12 @@ def test_parameter_counts_match_the_spec_hand_counts():
 
     tiny = MotionGenerator(get_generator_config("tiny-se32"), 40)
     assert count(tiny) == 77_031  # spec §2.13: tiny generator with d_s = 32, log-mel 40
-    assert count(StyleEncoder(get_style_config("tiny-se32"))) == 25_664
-    assert count(StyleEncoder(get_style_config("tiny-se64"))) == 100_480
-    assert count(StyleEncoder(get_style_config("base-se64"))) == 200_448
+    # spec §2.13 counts Linear(7 -> d_s); the presets read 14 inputs (D47: + velocities), 7 * d_s more
+    plain = {"input_features": "angles"}
+    assert count(StyleEncoder(replace(get_style_config("tiny-se32"), **plain))) == 25_664
+    assert count(StyleEncoder(replace(get_style_config("tiny-se64"), **plain))) == 100_480
+    assert count(StyleEncoder(replace(get_style_config("base-se64"), **plain))) == 200_448
+    assert count(StyleEncoder(get_style_config("tiny-se64"))) == 100_480 + 7 * 64
     base = MotionGenerator(get_generator_config("base-se64"), 768)
     assert count(base.core) + count(base.head) == 1_644_544 + 1_536 + 1_799
     assert np.isclose(count(base), 1.75e6, rtol=0.01)
@@ -260,3 +263,35 @@ def test_recorded_decisions_without_an_alternative_are_rejected_not_ignored():
         StyleEncoder(replace(get_style_config("tiny-se64"), positional_encoding="learned"))
     with pytest.raises(ConfigError, match="horizon"):
         replace(get_generator_config("tiny-se64"), horizon=60).validate()
+
+
+def test_nt_xent_labels_drop_same_label_negatives_by_hand():
+    a = [[1.0, 0.0], [0.6, 0.8], [0.0, 1.0]]
+    b = [[0.8, 0.6], [0.0, 1.0], [1.0, 0.0]]
+    ta, tb = torch.tensor(a, dtype=torch.float64), torch.tensor(b, dtype=torch.float64)
+    labels = torch.tensor([0, 0, 1])
+    z = [np.asarray(v) / np.linalg.norm(v) for v in a + b]
+    views, partner, tau = [0, 0, 1, 0, 0, 1], [3, 4, 5, 0, 1, 2], 0.5
+    total = 0.0
+    for i in range(6):  # denominator: the partner and every view of another label
+        keep = [k for k in range(6) if k != i and (k == partner[i] or views[k] != views[i])]
+        logits = {k: float(z[i] @ z[k]) / tau for k in keep}
+        total += -(logits[partner[i]] - math.log(sum(math.exp(v) for v in logits.values())))
+    assert nt_xent(ta, tb, tau, labels=labels).item() == pytest.approx(total / 6, rel=1e-12)
+    # all labels distinct: the plain loss
+    assert nt_xent(ta, tb, tau, labels=torch.arange(3)).item() == pytest.approx(nt_xent(ta, tb, tau).item(), rel=1e-12)
+    with pytest.raises(ValueError, match="labels"):
+        nt_xent(ta, tb, tau, labels=torch.zeros(2))
+
+
+def test_centred_velocity_input_ignores_a_constant_pose_offset():
+    cfg = replace(get_style_config("tiny-se64"), input_features="centred+velocity")
+    torch.manual_seed(0)
+    se = StyleEncoder(cfg).eval()
+    x = torch.randn(3, M, 7)
+    feats = se.features(x)
+    assert feats.shape == (3, M, 14) and torch.allclose(feats[:, 0, 7:], torch.zeros(3, 7))
+    with torch.no_grad():
+        assert torch.allclose(se(x), se(x + torch.randn(3, 1, 7) * 5), atol=1e-5)
+        plain = StyleEncoder(replace(cfg, input_features="angles")).eval()
+        assert not torch.allclose(plain(x), plain(x + 5.0), atol=1e-3)

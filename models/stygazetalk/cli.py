@@ -63,7 +63,8 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     from models.stygazetalk.checkpoints import save_style_model
     from models.stygazetalk.config import get_style_config
     from models.stygazetalk.data import load_segments
-    from models.stygazetalk.train_style import retrieval_accuracy, tiled_windows, train_style_encoder as fit
+    from models.stygazetalk.train_style import (cross_session_retrieval, retrieval_accuracy, tiled_windows,
+                                                train_style_encoder as fit)
 
     torch.set_num_threads(threads)
     cfg = _overrides(get_style_config(config_name), steps=steps, batch_pairs=batch, seed=seed)
@@ -79,8 +80,10 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
             "train_seconds": log.seconds, "val_retrieval_top1": acc, "val_retrieval_chance": chance,
             "curve": log.curve()}
     path = save_style_model(out, model, meta)
+    cross, cross_chance = cross_session_retrieval(model, val, train)
     click.echo(f"style encoder {cfg.name}: best val NT-Xent {log.best_val:.4f} at step {log.best_step} "
-               f"({log.seconds:.0f} s); val retrieval top-1 {acc:.3f} (chance {chance:.3f}); wrote {path}")
+               f"({log.seconds:.0f} s); val retrieval top-1 {acc:.3f} (chance {chance:.3f}); cross-session "
+               f"val -> train top-1 {cross:.3f} (chance {cross_chance:.3f}); wrote {path}")
 
 
 @click.command("stygazetalk")

@@ -36,6 +36,18 @@ class StyleEncoderConfig:
     loss_reduction: str = "mean"  # D22: mean over the 2B views (paper sums)
     pair_gap_max: int = 5  # D24: positive b starts M + U{0..gap} frames after a
     distinct_anchor_gap_s: float = 10.0  # D24: same-session anchors of one batch at least this far apart
+    # D48 (ours): "adjacent" is D24 (the paper's positives); "same-speaker" pairs each anchor with a
+    # non-overlapping window of the same speaker from any of the speaker's sessions (needs D46 "other-speakers")
+    positives: str = "adjacent"
+    # D46 (ours): which other windows of a batch are NT-Xent negatives. "all" is D24 as the paper allows
+    # (same-speaker anchors, even from the speaker's other session, are negatives); "other-speakers" drops
+    # same-speaker windows from the denominator, so the loss never pushes a speaker's sessions apart
+    negatives: str = "all"
+    # D47 (ours): what the projection reads of the normalised window. "angles" = the 7 z-scored angles
+    # (D4/D15 as written); "centred" subtracts each window's per-channel mean, so windows cannot be matched
+    # by a shared slow pose (head drift); "centred+velocity" also appends the 7 frame-to-frame differences
+    # (0 at the first frame), Linear(14 -> d_s), so rates of saccades, glitches and noise are per-frame inputs
+    input_features: str = "angles"
     batch_pairs: int = 32  # D25
     lr: float = 1e-4
     steps: int = 20_000
@@ -51,6 +63,16 @@ class StyleEncoderConfig:
         for key, only in fixed.items():  # recorded decisions with no implemented alternative
             if getattr(self, key) != only:
                 raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        if self.negatives not in ("all", "other-speakers"):
+            raise ConfigError(f"{self.name}: negatives must be all or other-speakers, got {self.negatives!r}")
+        if self.positives not in ("adjacent", "same-speaker"):
+            raise ConfigError(f"{self.name}: positives must be adjacent or same-speaker, got {self.positives!r}")
+        if self.positives == "same-speaker" and self.negatives != "other-speakers":
+            raise ConfigError(f"{self.name}: same-speaker positives need negatives='other-speakers' (a speaker's "
+                              f"other windows cannot be positives and negatives at once)")
+        if self.input_features not in ("angles", "centred", "centred+velocity"):
+            raise ConfigError(f"{self.name}: input_features must be angles, centred or centred+velocity, "
+                              f"got {self.input_features!r}")
         if self.loss_reduction not in ("mean", "sum") or self.d_s % self.heads:
             raise ConfigError(f"{self.name}: loss_reduction must be mean or sum and heads must divide d_s")
         return self
@@ -171,8 +193,11 @@ class GeneratorConfig:
 
 
 # --- presets ----------------------------------------------------------------------------------------
-_SE_BASE = StyleEncoderConfig()
-_SE_TINY = replace(_SE_BASE, layers=2, heads=2, dropout=0.0, lr=1e-3, steps=500)  # spec §7.2
+_SE_BASE = StyleEncoderConfig(input_features="centred+velocity")
+# spec §7.2, except: D47 centred angles + velocities (with the plain angles the encoder matched adjacent
+# windows by their shared slow pose and retrieved speakers across sessions at chance), dropout 0.1 (as
+# base; 0 overfitted the 16 training sessions) and 1,000 steps, chosen by cross-session retrieval val -> train
+_SE_TINY = replace(_SE_BASE, layers=2, heads=2, dropout=0.1, lr=1e-3, steps=1000, input_features="centred+velocity")
 
 STYLE_ENCODERS: dict[str, StyleEncoderConfig] = {
     "base-se64": replace(_SE_BASE, name="base-se64"),

@@ -105,12 +105,18 @@ def build_window_bank(segments: list[Segment], *, window: int, stride: int, pre:
 
 
 def sample_style_pairs(segments: list[Segment], rng: np.random.Generator, *, batch: int, window: int,
-                       gap_max: int, min_anchor_gap: int, tries: int = 1000) -> tuple[list, list]:
-    """B anchor windows a = X[s:s+M] and positives b = X[s+M+g : s+2M+g], g ~ U{0..gap_max} (D24).
+                       gap_max: int, min_anchor_gap: int, positives: str = "adjacent",
+                       tries: int = 1000) -> tuple[list, list]:
+    """B anchor windows a = X[s:s+M] and their positives b. Returns two lists of (segment index, start).
 
-    Anchors drawn from one session are at least ``min_anchor_gap`` frames apart. Returns the two lists
-    of (segment index, start) pairs.
+    ``positives="adjacent"`` (D24): b = X[s+M+g : s+2M+g] of the same segment, g ~ U{0..gap_max}.
+    ``positives="same-speaker"`` (D48): b is a uniformly drawn window of the anchor's speaker, from any
+    of the speaker's sessions, that does not overlap a (so that only what the speaker's windows share
+    across time and sessions can match them). Anchors drawn from one session are at least
+    ``min_anchor_gap`` frames apart.
     """
+    if positives not in ("adjacent", "same-speaker"):
+        raise InputError("positives", f"must be adjacent or same-speaker, got {positives!r}")
     span = 2 * window + gap_max
     usable = [i for i, s in enumerate(segments) if s.frames >= span]
     if not usable:
@@ -129,11 +135,32 @@ def sample_style_pairs(segments: list[Segment], rng: np.random.Generator, *, bat
         taken = chosen.setdefault(seg.session, [])
         if any(abs(absolute - other) < min_anchor_gap for other in taken):
             continue
+        if positives == "adjacent":
+            g = int(rng.integers(0, gap_max + 1))
+            partner = (i, s + window + g)
+        else:
+            partner = _same_speaker_window(segments, i, s, window, rng)
+            if partner is None:
+                continue
         taken.append(absolute)
-        g = int(rng.integers(0, gap_max + 1))
         a.append((i, s))
-        b.append((i, s + window + g))
+        b.append(partner)
     if len(a) < batch:
         raise InputError("segments", f"cannot draw {batch} anchors at least {min_anchor_gap} frames apart "
                                      f"within sessions; use more or longer sessions or a smaller batch")
     return a, b
+
+
+def _same_speaker_window(segments: list[Segment], i: int, s: int, window: int,
+                         rng: np.random.Generator) -> tuple[int, int] | None:
+    """A uniform window start of the speaker of segment i that does not overlap X_i[s:s+M] (D48)."""
+    speaker, anchor = segments[i].speaker, segments[i].start + s
+    starts = []
+    for j, seg in enumerate(segments):
+        if seg.speaker != speaker or seg.frames < window:
+            continue
+        u = np.arange(seg.frames - window + 1)
+        if seg.session == segments[i].session:
+            u = u[np.abs(seg.start + u - anchor) >= window]
+        starts.extend((j, int(k)) for k in u)
+    return starts[int(rng.integers(len(starts)))] if starts else None

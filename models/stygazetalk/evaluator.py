@@ -17,7 +17,7 @@ from dyadbench.training.checkpoint import file_digest
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER, load_style_model
 from models.stygazetalk.train_style import StyleModel
 
-EVALUATOR_VERSION = "stygazetalk-se64-tiny-v1"
+EVALUATOR_VERSION = "stygazetalk-se64-tiny-v2"  # v2: D47 inputs (centred angles + velocities), retrained
 
 
 @dataclass
