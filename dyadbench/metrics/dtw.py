@@ -83,23 +83,29 @@ def _strip_costs(x, i, strip, n, start, stop, costs, row):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _strip_costs_per_lane(xr, strip, n, start, stop, costs, row):
-    """:func:`_strip_costs` with a different shared frame per lane: ``xr[d, k]`` replaces ``x[i, d]``."""
+def _strip_costs_per_lane(xl, i, strip, n, start, stop, costs, row):
+    """:func:`_strip_costs` with each lane's own shared frame: ``xl[d, i * LANES + b]`` replaces ``x[i, d]``
+    in lane b (column k * LANES + b)."""
     for d in range(start, stop, 4):
-        if d == start:
-            for k in range(n):
-                ta = xr[d, k] - strip[d, k]
-                tb = xr[d + 1, k] - strip[d + 1, k]
-                tc = xr[d + 2, k] - strip[d + 2, k]
-                td = xr[d + 3, k] - strip[d + 3, k]
-                costs[row, k] = ((ta * ta + tb * tb) + tc * tc) + td * td
-        else:
-            for k in range(n):
-                ta = xr[d, k] - strip[d, k]
-                tb = xr[d + 1, k] - strip[d + 1, k]
-                tc = xr[d + 2, k] - strip[d + 2, k]
-                td = xr[d + 3, k] - strip[d + 3, k]
-                costs[row, k] = (((costs[row, k] + ta * ta) + tb * tb) + tc * tc) + td * td
+        pa = xl[d, i * LANES:(i + 1) * LANES]
+        pb = xl[d + 1, i * LANES:(i + 1) * LANES]
+        pc = xl[d + 2, i * LANES:(i + 1) * LANES]
+        pd = xl[d + 3, i * LANES:(i + 1) * LANES]
+        sa = strip[d]
+        sb = strip[d + 1]
+        sc = strip[d + 2]
+        sd = strip[d + 3]
+        out = costs[row]
+        for k in range(0, n, LANES):
+            for b in range(LANES):
+                ta = pa[b] - sa[k + b]
+                tb = pb[b] - sb[k + b]
+                tc = pc[b] - sc[k + b]
+                td = pd[b] - sd[k + b]
+                if d == start:
+                    out[k + b] = ((ta * ta + tb * tb) + tc * tc) + td * td
+                else:
+                    out[k + b] = (((out[k + b] + ta * ta) + tb * tb) + tc * tc) + td * td
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -155,7 +161,6 @@ def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
     grid = np.empty((2 * padded, (STRIP + 1) * LANES), dtype=ys.dtype)  # rows 2g + 0/1: previous/current
     costs = np.zeros((n_rep + padded, WIDTH), dtype=ys.dtype)  # padding groups keep their zero cost row
     strip = np.empty((ys.shape[0], WIDTH), dtype=ys.dtype)
-    xr = np.empty((xl.shape[0], WIDTH), dtype=ys.dtype)  # per-lane mode: row i of every lane, per column
     cost_of = np.empty(padded, dtype=np.int64)
     for g in range(n_groups, padded):
         cost_of[g] = n_rep + g
@@ -177,17 +182,12 @@ def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
             p = i & 1
             q = 1 - p
             base = (i + 1) * LANES
-            if per_lane:
-                for d in range(xl.shape[0]):
-                    for k in range(0, n, LANES):
-                        for b in range(LANES):
-                            xr[d, k + b] = xl[d, i * LANES + b]
             for g in range(n_groups):
                 s = -1 if per_lane else slot[g, i]
                 if s < 0:
                     s = n_rep + g
                     if per_lane:
-                        _strip_costs_per_lane(xr, strip, n, gstart[g], gstop[g], costs, s)
+                        _strip_costs_per_lane(xl, i, strip, n, gstart[g], gstop[g], costs, s)
                     else:
                         _strip_costs(x, i, strip, n, gstart[g], gstop[g], costs, s)
                 cost_of[g] = s
