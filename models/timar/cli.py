@@ -10,12 +10,16 @@ from typing import Callable
 
 import click
 
-from models.timar.config import PRESETS
+from models.timar.config import MOTION_NORMS, PRESETS
 
 OPTIONS = [
     click.option("--config", "config_name", default="tiny", show_default=True, type=click.Choice(list(PRESETS)),
                  help="Model size: tiny (log-mel speech, CPU in minutes), base / large / huge (the paper's "
                       "sizes, wav2vec 2.0 speech; need --wav2vec-weights and a GPU)."),
+    click.option("--motion-norm", type=click.Choice(MOTION_NORMS), default=None,
+                 help="Motion the model sees and predicts: none (raw, as released) or per_dim (standardised "
+                      "with the training mean/std, mapped back at sampling) [default: the config's; tiny: "
+                      "per_dim, base/large/huge: none]."),
     click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
                  help="Dataset root holding train/ in the DualTalk layout. Default: the embedded synthetic "
                       "corpus (generated into the cache on first use)."),
@@ -51,15 +55,15 @@ def _with_options(f: Callable) -> Callable:
     return functools.reduce(lambda g, opt: opt(g), reversed(OPTIONS), f)
 
 
-def _run(variant: str, config_name: str, data: Path | None, clips: int | None, epochs: int, batch_size: int | None,
-         lr: float | None, warmup_epochs: float, stride_turns: int, seed: int, out: Path | None,
-         resume: Path | None, export: Path | None, device: str, wav2vec_weights: str | None) -> None:
+def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | None, clips: int | None,
+         epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float, stride_turns: int, seed: int,
+         out: Path | None, resume: Path | None, export: Path | None, device: str, wav2vec_weights: str | None) -> None:
     from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)
     from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
 
-    cfg = preset(config_name, variant)
+    cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
     source = open_dataset_split("dualtalk" if data is not None else "synthetic", data, "train")
     if clips is not None:
         source = InMemorySource([source.load(c) for c in source.clip_ids()[:clips]], dataset=source.dataset,
@@ -79,8 +83,8 @@ def train_timar(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-tiny.pt):
-      dyadbench train timar --config tiny --clips 300 --epochs 3 --warmup-epochs 0.05 --seed 0 \\
-          --export models/timar/checkpoints/timar-tiny.pt
+      OMP_NUM_THREADS=1 dyadbench train timar --config tiny --stride 4 --epochs 2 --warmup-epochs 0.05 \\
+          --seed 0 --export models/timar/checkpoints/timar-tiny.pt
     Multi-GPU: torchrun --nproc_per_node 8 -m dyadbench train timar --config large --device cuda ...
     """
     _run("faithful", **kwargs)
@@ -93,7 +97,7 @@ def train_timar_stream(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-stream-tiny.pt):
-      dyadbench train timar-stream --config tiny --clips 300 --epochs 3 --warmup-epochs 0.05 --seed 0 \\
-          --export models/timar/checkpoints/timar-stream-tiny.pt
+      OMP_NUM_THREADS=1 dyadbench train timar-stream --config tiny --stride 4 --epochs 2 --warmup-epochs 0.05 \\
+          --seed 0 --export models/timar/checkpoints/timar-stream-tiny.pt
     """
     _run("stream", **kwargs)
