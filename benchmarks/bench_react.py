@@ -1,7 +1,7 @@
 """REACT suite: fast implementation vs the straightforward loops of the specification.
 
     python benchmarks/bench_react.py                 # --size small: N = 200 samples (a few minutes)
-    python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750
+    python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750 (~6 min)
 
 Problem: R = 10 reactions of T = 750 frames per speaker sample. Ground truth: emotion features of the
 embedded synthetic corpus (:func:`dyadbench.synth.react_writer.emotion_features` of generated
