@@ -123,7 +123,8 @@ def test_screen_keeps_near_ties_and_the_first_minimum():
 
 
 float32_series = arrays(np.float32, st.tuples(st.integers(1, 40), st.just(5)),
-                        elements=st.one_of(st.floats(-4, 4, width=32), st.floats(-2.0 ** -66, 2.0 ** -66, width=32)))
+                        elements=st.one_of(st.floats(-4, 4, width=32), st.floats(-2.0 ** -66, 2.0 ** -66, width=32),
+                                           st.floats(-1e6, 1e6, width=32)))
 
 
 @settings(max_examples=40, deadline=None)
