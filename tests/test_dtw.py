@@ -1,4 +1,4 @@
-"""Exact DTW: brute-force recurrence, tslearn equality, weighted groups, exact pruning, properties."""
+"""Exact DTW: brute-force recurrence, tslearn equality, weighted groups, shared cost rows, the float32 screen."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Exact dynamic time warping (tslearn's ``dtw``), fast: SIMD lanes, strips, shared cost rows, threads, exact pruning.
+"""Exact dynamic time warping (tslearn's ``dtw``), fast: SIMD lanes, strips, shared cost rows, float32 screen.
 
 Definition (identical to ``tslearn.metrics.dtw`` with default arguments: no window, the full
 T1 x T2 grid)::
