@@ -11,7 +11,7 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.synth.corpus import make_clips
-from dyadbench.training.checkpoint import load_checkpoint
+from dyadbench.training.checkpoint import file_digest, load_checkpoint
 from models.sfms import cli
 from models.sfms.registry import build_sfms
 
@@ -38,6 +38,7 @@ def test_trainers_write_checkpoints_that_stream(tmp_path, tiny_data):
     res = runner.invoke(cli.train_predictor, SMALL + ["--set", "audio_bins=8", "--tokenizer", str(tok),
                                                      "--out", str(full)])
     assert res.exit_code == 0, res.output
+    assert load_checkpoint(full, expect_model="sfms")["meta"]["tokenizer_sha256"] == file_digest(tok)
     history = json.loads(full.with_suffix(".history.json").read_text())
     assert len(history["steps"]) == 3 and "unigram_ce" in history["val"][-1]
     model = build_sfms(ModelOptions(weights=full))

@@ -19,7 +19,7 @@ from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.registry import DATASETS
 from dyadbench.seeding import rng as seeded_rng
-from dyadbench.training.checkpoint import save_checkpoint
+from dyadbench.training.checkpoint import file_digest, save_checkpoint
 from models.sfms.bundle import PREDICTOR_MODEL, TOKENIZER_MODEL, load_tokenizer
 from models.sfms.config import PREDICTOR_PRESETS, TOKENIZER_PRESETS, predictor_preset, to_dict, tokenizer_preset
 from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed, row_stats
@@ -179,7 +179,8 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
                                        val_windows=val_windows)
         if world.main:
             meta = {"model": PREDICTOR_MODEL, "preset": preset, "seed": seed, "data": describe,
-                    "tokenizer": str(tokenizer_path), "best_val_ce": history["best_val_ce"],
+                    "tokenizer": str(tokenizer_path), "tokenizer_sha256": file_digest(tokenizer_path),
+                    "best_val_ce": history["best_val_ce"],
                     "best_step": history["best_step"], "train_seconds": history["train_seconds"],
                     "world_size": world.size, "val": history["val"]}
             save_checkpoint(out, model_state=model.state_dict(), config=model.config(), meta=meta)
