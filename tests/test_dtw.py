@@ -7,7 +7,7 @@ from hypothesis.extra.numpy import arrays
 from tslearn.metrics import dtw as tslearn_dtw
 
 from dyadbench.errors import InputError
-from dyadbench.metrics.dtw import (LANES, STRIP, _groups, _repeated_rows, _screen_bounds, _screenable, _values, dtw,
+from dyadbench.metrics.dtw import (LANES, STRIP, _groups, _repeated_rows, _float32_copies, _screen_bounds, _values, dtw,
                                    min_weighted_dtw, weighted_dtw_pairs)
 
 GROUPS = ((0, 15, 1 / 15), (15, 17, 1.0), (17, 25, 1 / 8))
@@ -139,9 +139,9 @@ def test_screen_interval_holds_the_float64_value(x, y):
 
 
 def test_screen_needs_float32_values():
-    assert _screenable(np.zeros((1, 3, 2), np.float32), np.full((1, 3, 2), 0.5))
-    assert not _screenable(np.zeros((1, 3, 2), np.float32), np.full((1, 3, 2), 0.1))  # 0.1 is not a float32
-    assert not _screenable(np.full((1, 3, 2), 1e19, np.float32), np.zeros((1, 3, 2)))  # squares overflow
+    assert _float32_copies(np.zeros((1, 3, 2), np.float32), np.full((1, 3, 2), 0.5)) is not None
+    assert _float32_copies(np.zeros((1, 3, 2), np.float32), np.full((1, 3, 2), 0.1)) is None  # 0.1: no float32
+    assert _float32_copies(np.full((1, 3, 2), 1e19, np.float32), np.zeros((1, 3, 2))) is None  # squares overflow
 
 
 def test_bad_input_is_named():

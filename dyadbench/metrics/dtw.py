@@ -438,13 +438,19 @@ def _screen_bounds(approx, t1: int, t2: int, dims: int, weights: np.ndarray) -> 
     return approx * (1 - margin) - slack, approx * (1 + margin) + slack
 
 
-def _screenable(queries: np.ndarray, refs: np.ndarray) -> bool:
-    """True when every value is a float32 number and no float32 grid sum can overflow."""
+def _float32_copies(queries: np.ndarray, refs: np.ndarray):
+    """(queries, refs) as float32 when every value is a float32 number and no float32 grid sum can
+    overflow; None when the screen does not apply."""
+    copies = []
     for a in (queries, refs):
-        if a.dtype != np.float32 and not np.array_equal(a.astype(np.float32), a):
-            return False
+        a32 = a.astype(np.float32, copy=False)
+        if a32 is not a and not np.array_equal(a32, a):
+            return None
+        copies.append(a32)
     largest = max(float(np.abs(queries).max(initial=0)), float(np.abs(refs).max(initial=0)))
-    return (queries.shape[1] + refs.shape[1]) * queries.shape[2] * (2 * largest) ** 2 < 1e37
+    if (queries.shape[1] + refs.shape[1]) * queries.shape[2] * (2 * largest) ** 2 >= 1e37:
+        return None
+    return copies
 
 
 def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: bool = True,
@@ -480,9 +486,10 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: boo
     if threads is not None:
         set_num_threads(max(1, min(int(threads), previous)))
     try:
-        if screen and _screenable(queries, refs):
-            approx = _values(refs.astype(np.float32), queries.astype(np.float32, copy=False), indices, pair_q,
-                             groups)
+        copies = _float32_copies(queries, refs) if screen else None
+        if copies is not None:
+            queries32, refs32 = copies
+            approx = _values(refs32, queries32, indices, pair_q, groups)
             low, high = _screen_bounds(approx, queries.shape[1], refs.shape[1], queries.shape[2], groups[2])
             keep = low <= np.minimum.reduceat(high, indptr[:-1])[pair_q]
             values = np.full(len(indices), np.inf)

@@ -316,17 +316,18 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
     dist = _sum_over_reactions(fr_dist_per_reaction(p, lst, indptr, indices, screen=screen, threads=threads,
                                                     progress=progress))
     div = fr_div_per_sample(p)
+    variances = time_variances(p)
     offsets = fr_syn_offsets(p, sp, all_reactions=True)
     metrics = {
         "FRCorr": float(np.mean(corr)),
         "FRDist": float(np.mean(dist)),
         "FRDiv": float(np.mean(div)),
-        "FRVar": fr_var(p),
+        "FRVar": float(np.mean(variances)),
         "FRDvs": fr_dvs(p),
         "FRSyn": float32_mean(offsets[:, 0]),
         "FRSyn_all": float32_mean(offsets.ravel()),
     }
-    var = time_variances(p).mean(axis=(1, 2))
+    var = variances.mean(axis=(1, 2))
     per_sample = {"FRCorr": corr, "FRDist": dist, "FRDiv": div, "FRVar": var,
                   "FRSyn": offsets[:, 0].astype(np.float64)}
     return metrics, per_sample
