@@ -19,6 +19,13 @@ MOTION_DIM = 7  # D1: [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch,
 CHANNELS = ("head_pitch", "head_yaw", "head_roll", "left_pitch", "left_yaw", "right_pitch", "right_yaw")
 
 
+def _require_fixed(config, fixed: dict) -> None:
+    """Recorded decisions with no implemented alternative: each field must hold its only value."""
+    for key, only in fixed.items():
+        if getattr(config, key) != only:
+            raise ConfigError(f"{config.name}: {key}={getattr(config, key)!r} is not implemented (only {only!r})")
+
+
 @dataclass(frozen=True)
 class StyleEncoderConfig:
     """Stage 1: Transformer style encoder trained with NT-Xent (spec §2.5, §2.8)."""
@@ -59,10 +66,7 @@ class StyleEncoderConfig:
         return config_to_dict(self)
 
     def validate(self) -> "StyleEncoderConfig":
-        fixed = {"positional_encoding": "sinusoidal", "pooling": "mean", "normalisation": "zscore-train"}
-        for key, only in fixed.items():  # recorded decisions with no implemented alternative
-            if getattr(self, key) != only:
-                raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        _require_fixed(self, {"positional_encoding": "sinusoidal", "pooling": "mean", "normalisation": "zscore-train"})
         if self.negatives not in ("all", "other-speakers"):
             raise ConfigError(f"{self.name}: negatives must be all or other-speakers, got {self.negatives!r}")
         if self.positives not in ("adjacent", "same-speaker"):
@@ -172,11 +176,8 @@ class GeneratorConfig:
             raise ConfigError(f"{self.name}: decoding must be mean or sample, sample_dims gaze or all")
         if self.seed_window not in ("gt", "mpgw-sim"):
             raise ConfigError(f"{self.name}: seed_window must be gt or mpgw-sim")
-        fixed = {"alignment": "one-frame-lag", "motion_encoder": "linear", "window_local_audio": True,
-                 "normalisation": "zscore-train", "loss_reduction": "mean"}
-        for key, only in fixed.items():  # recorded decisions with no implemented alternative
-            if getattr(self, key) != only:
-                raise ConfigError(f"{self.name}: {key}={getattr(self, key)!r} is not implemented (only {only!r})")
+        _require_fixed(self, {"alignment": "one-frame-lag", "motion_encoder": "linear", "window_local_audio": True,
+                              "normalisation": "zscore-train", "loss_reduction": "mean"})
         if self.checkpoint_selection not in ("val-loss", "last"):
             raise ConfigError(f"{self.name}: checkpoint_selection must be val-loss or last")
         if self.lr_schedule not in ("cosine", "constant"):
