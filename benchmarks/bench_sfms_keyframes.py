@@ -34,6 +34,18 @@ from models.sfms.train_tokenizer import eval_windows, fit_tokenizer, reconstruct
 RESULT = Path(__file__).parent / "results" / "sfms_keyframes.md"
 
 
+def load_corpus(clips: int, test_windows: int) -> tuple[list[np.ndarray], np.ndarray, np.ndarray, np.ndarray]:
+    """(z-scored train motions of the first ``clips`` train dialogues, z-scored non-overlapping 48-frame test
+    windows, train mean, train std): the data every SFMS keyframe benchmark reads."""
+    open_split = DATASETS.load("synthetic")
+    train_src, test_src = open_split(None, "train"), open_split(None, "test")
+    train_raw = clip_motions(train_src.load(i) for i in train_src.clip_ids()[:clips])
+    test_raw = clip_motions(test_src.load(i) for i in test_src.clip_ids())
+    mean, std = motion_stats(train_raw)
+    train = [(a - mean) / std for a in train_raw]
+    return train, eval_windows([(a - mean) / std for a in test_raw], 48, limit=test_windows), mean, std
+
+
 def run_arm(mode: str, k: int, common: dict, train: list[np.ndarray], test: np.ndarray, mean: np.ndarray,
             std: np.ndarray, seed: int) -> dict:
     cfg = tokenizer_preset("tiny", keyframe_mode=mode, keyframes=k, **common)
@@ -63,13 +75,7 @@ def main(ks, steps, batch, levels, clips, test_windows, seed, threads, out) -> N
     k_values = [int(k) for k in ks.split(",")]
     common = dict(steps=steps, batch=batch, fsq_levels=tuple(int(v) for v in levels.split(",")),
                   val_every=steps)
-    open_split = DATASETS.load("synthetic")
-    train_src, test_src = open_split(None, "train"), open_split(None, "test")
-    train_raw = clip_motions(train_src.load(i) for i in train_src.clip_ids()[:clips])
-    test_raw = clip_motions(test_src.load(i) for i in test_src.clip_ids())
-    mean, std = motion_stats(train_raw)
-    train = [(a - mean) / std for a in train_raw]
-    test = eval_windows([(a - mean) / std for a in test_raw], 48, limit=test_windows)
+    train, test, mean, std = load_corpus(clips, test_windows)
     arms = [("dense", 48)] + [(mode, k) for k in k_values for mode in ("dynamic", "static")]
     rows = []
     for mode, k in arms:
