@@ -51,6 +51,7 @@ DATASET = "synthetic-gaze"
 VARIANTS = ("base", "se32", "se64", "se64-vel", "tfm-se64")
 X1_SCALES = (0.25, 0.5, 0.75, 1.0)
 ABLATION = ("se64", "se64-vel")  # the velocity-loss ablation, repeated over seeds
+ABLATION_LABELS = (("se64", "SE-64"), ("se64-vel", "SE-64-VEL"))
 ABLATION_SEEDS = (0, 1, 2)
 # the same ablation on a larger generated train split (the 16 embedded train sessions overfit: SE-64-VEL's
 # lowest validation L_gen is at step 250 of 1,500), where the spec's selection keeps (nearly) final weights
@@ -125,6 +126,19 @@ def _large_train_root(work: Path) -> Path:
 
 def _large_key(variant: str, seed: int) -> str:
     return f"{variant}-train{LARGE_TRAIN_SESSIONS}-seed{seed}"
+
+
+def _ablation_cells(runs: list[dict]) -> str:
+    """Table cells of one ablation arm over seeds: FixRatio per seed, mean FixRatio, CompScore, Sim_seq."""
+    return (" / ".join(f"{m['fix_ratio']:.3f}" for m in runs) + f" | {np.mean([m['fix_ratio'] for m in runs]):.3f} | "
+            f"{np.mean([m['comp_score'] for m in runs]):.3f} | {np.mean([m['sim_gt_seq'] for m in runs]):.3f}")
+
+
+def _direction(runs: dict[str, list[dict]], gt_fix: float) -> str:
+    """Whether SE-64-VEL's mean FixRatio is nearer the ground truth's than SE-64's."""
+    mean = {v: float(np.mean([m["fix_ratio"] for m in r])) for v, r in runs.items()}
+    toward = abs(mean["se64-vel"] - gt_fix) < abs(mean["se64"] - gt_fix)
+    return f"{'toward' if toward else 'AWAY FROM'} the ground truth"
 
 
 def _ablation_key(variant: str, selection: str, seed: int) -> str:
@@ -270,32 +284,21 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
               "|---|---|---|---|---|---|"]
     verdicts = []
     for selection in ("val-loss", "last"):
-        means = {}
-        for variant, label in (("se64", "SE-64"), ("se64-vel", "SE-64-VEL")):
-            runs = [ablation[_ablation_key(variant, selection, seed)] for seed in ABLATION_SEEDS]
-            means[variant] = float(np.mean([m["fix_ratio"] for m in runs]))
-            lines.append(f"| {label} | {selection} | " + " / ".join(f"{m['fix_ratio']:.3f}" for m in runs)
-                         + f" | {means[variant]:.3f} | {np.mean([m['comp_score'] for m in runs]):.3f} | "
-                         f"{np.mean([m['sim_gt_seq'] for m in runs]):.3f} |")
-        toward = abs(means["se64-vel"] - gt["fix_ratio"]) < abs(means["se64"] - gt["fix_ratio"])
-        verdicts.append(f"{selection}: {'toward' if toward else 'AWAY FROM'} the ground truth")
+        runs = {v: [ablation[_ablation_key(v, selection, seed)] for seed in ABLATION_SEEDS] for v in ABLATION}
+        lines += [f"| {label} | {selection} | {_ablation_cells(runs[v])} |" for v, label in ABLATION_LABELS]
+        verdicts.append(f"{selection}: {_direction(runs, gt['fix_ratio'])}")
     lines += ["", f"The same ablation trained on {LARGE_TRAIN_SESSIONS} generated train sessions (the 16 embedded ones "
                   f"plus {LARGE_TRAIN_SESSIONS - 16} more of the same 8 speakers), seeds "
                   f"{', '.join(map(str, LARGE_SEEDS))}, the spec's val-loss selection:", "",
               "| variant | FixRatio per seed | mean FixRatio | mean CompScore | mean Sim_seq | best steps |",
               "|---|---|---|---|---|---|"]
-    large = {}
-    for variant, label in (("se64", "SE-64"), ("se64-vel", "SE-64-VEL")):
-        runs = [ablation[_large_key(variant, seed)] for seed in LARGE_SEEDS]
-        large[variant] = np.array([m["fix_ratio"] for m in runs])
-        steps = [load_system(paths[_large_key(variant, seed)])[1]["best_step"] for seed in LARGE_SEEDS]
-        lines.append(f"| {label} | " + " / ".join(f"{v:.3f}" for v in large[variant]) + f" | {large[variant].mean():.3f} | "
-                     f"{np.mean([m['comp_score'] for m in runs]):.3f} | {np.mean([m['sim_gt_seq'] for m in runs]):.3f} | "
-                     + ", ".join(map(str, steps)) + " |")
-    diff = large["se64-vel"] - large["se64"]
-    toward = abs(large["se64-vel"].mean() - gt["fix_ratio"]) < abs(large["se64"].mean() - gt["fix_ratio"])
-    verdicts.append(f"val-loss, {LARGE_TRAIN_SESSIONS} train sessions: {'toward' if toward else 'AWAY FROM'} the ground "
-                    f"truth (paired SE-64-VEL − SE-64 per seed: " + " / ".join(f"{d:+.3f}" for d in diff)
+    runs = {v: [ablation[_large_key(v, seed)] for seed in LARGE_SEEDS] for v in ABLATION}
+    for v, label in ABLATION_LABELS:
+        steps = [load_system(paths[_large_key(v, seed)])[1]["best_step"] for seed in LARGE_SEEDS]
+        lines.append(f"| {label} | {_ablation_cells(runs[v])} | " + ", ".join(map(str, steps)) + " |")
+    diff = np.array([b["fix_ratio"] - a["fix_ratio"] for a, b in zip(runs["se64"], runs["se64-vel"])])
+    verdicts.append(f"val-loss, {LARGE_TRAIN_SESSIONS} train sessions: {_direction(runs, gt['fix_ratio'])} "
+                    f"(paired SE-64-VEL − SE-64 per seed: " + " / ".join(f"{d:+.3f}" for d in diff)
                     + f"; mean {diff.mean():+.3f} ± {diff.std(ddof=1) / np.sqrt(len(diff)):.3f} s.e.)")
     lines += ["", "Mean over seeds, the velocity loss moves FixRatio — " + "; ".join(verdicts) + ".",
               "", "Style transfer (SE-64-VEL, mean decoding; style_from = another test session; cosine between "
