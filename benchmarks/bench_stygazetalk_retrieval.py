@@ -22,20 +22,23 @@ import click
 import numpy as np
 import torch
 
+from dyadbench import atomic
+from dyadbench.datasets.gaze import SYNTHETIC_SEED
 from dyadbench.registry import DATASETS
-from dyadbench.synth.gaze import SPEAKERS, make_gaze_session
+from dyadbench.synth.gaze import DEFAULT_SESSIONS, SPEAKERS, make_gaze_session
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER, load_style_model
+from models.stygazetalk.config import get_style_config
 from models.stygazetalk.data import load_segments
 from models.stygazetalk.train_style import retrieval_accuracy, tiled_windows
 
 DATASET, WINDOW = "synthetic-gaze", 50
-SESSIONS = {"train": 16, "val": 8, "test": 8}
+SESSIONS = {split: DEFAULT_SESSIONS[split] for split in ("train", "val", "test")}
 
 
 def style_spread() -> tuple[float, float]:
     """Median over style parameters of the between-speaker and within-speaker (session) variance, both in
-    units of the parameter's variance over all 32 sessions."""
-    rows = [make_gaze_session(split, i, 0, duration_s=1.0).meta for split, n in SESSIONS.items() for i in range(n)]
+    units of the parameter's variance over all the sessions of SESSIONS."""
+    rows = [make_gaze_session(split, i, SYNTHETIC_SEED, duration_s=1.0).meta for split, n in SESSIONS.items() for i in range(n)]
     names = [k for k in rows[0]["style"] if k != "sync"]
     p = np.array([[r["style"][k] for k in names] for r in rows])
     spk = np.array([r["speaker"] for r in rows])
@@ -68,7 +71,8 @@ def protocols(embed, windows) -> dict[str, tuple[float, float]]:
               default=Path("benchmarks/results/stygazetalk_retrieval.md"), show_default=True)
 def main(encoders: tuple[Path, ...], out: Path) -> None:
     torch.set_num_threads(1)
-    segs = {s: load_segments(DATASETS.load(DATASET)(None, s), 40.0, WINDOW) for s in SESSIONS}
+    limit = get_style_config("tiny-se64").angle_limit_deg
+    segs = {s: load_segments(DATASETS.load(DATASET)(None, s), limit, WINDOW) for s in SESSIONS}
     windows = {s: tiled_windows(seg, WINDOW) for s, seg in segs.items()}
     ref = window_stats(windows["train"][0])
     rows = {"hand-made window statistics": protocols(
@@ -86,15 +90,14 @@ def main(encoders: tuple[Path, ...], out: Path) -> None:
              f"embedded `{DATASET}` sessions, non-overlapping {WINDOW}-frame windows, cosine top-1; cells are "
              "accuracy / chance).", "",
              f"True style parameters (median over the 13 jittered parameters, variance in units of the variance "
-             f"over all 32 sessions): between speakers {between:.3f}, between one speaker's sessions {within:.3f} "
+             f"over all {sum(SESSIONS.values())} sessions): between speakers {between:.3f}, between one speaker's sessions {within:.3f} "
              f"(ratio {between / within:.1f}); the session jitter does not swamp the speakers.", "",
              "| embedding | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for name, res in rows.items():
         lines.append(f"| {name} | " + " | ".join(f"{a:.3f} / {ch:.3f}" for a, ch in res.values()) + " |")
     text = "\n".join(lines) + "\n"
     click.echo(text)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    out.write_text(text)
+    atomic.write_text(out, text)
 
 
 if __name__ == "__main__":

@@ -198,7 +198,7 @@ _SE_BASE = StyleEncoderConfig(input_features="centred+velocity")
 # spec §7.2, except: D47 centred angles + velocities (with the plain angles the encoder matched adjacent
 # windows by their shared slow pose and retrieved speakers across sessions at chance), dropout 0.1 (as
 # base; 0 overfitted the 16 training sessions) and 1,000 steps, chosen by cross-session retrieval val -> train
-_SE_TINY = replace(_SE_BASE, layers=2, heads=2, dropout=0.1, lr=1e-3, steps=1000, input_features="centred+velocity")
+_SE_TINY = replace(_SE_BASE, layers=2, heads=2, dropout=0.1, lr=1e-3, steps=1000)
 
 STYLE_ENCODERS: dict[str, StyleEncoderConfig] = {
     "base-se64": replace(_SE_BASE, name="base-se64"),
