@@ -40,6 +40,13 @@ def mel_filterbank(sample_rate: int, n_fft: int, n_mels: int, fmin: float, fmax:
     return bank
 
 
+@lru_cache(maxsize=16)
+def _hann(win_length: int) -> np.ndarray:
+    window = np.hanning(win_length)
+    window.setflags(write=False)
+    return window
+
+
 def logmel_frames(audio: np.ndarray, sample_rate: int = 16_000, fps: float = 25.0, *, n_mels: int = 40,
                   win_length: int = 1024, fmin: float = 60.0, fmax: float | None = None) -> np.ndarray:
     """Log-mel features, one row per motion frame: (floor(len(audio) * fps / sample_rate), n_mels) float32.
@@ -61,7 +68,7 @@ def logmel_frames(audio: np.ndarray, sample_rate: int = 16_000, fps: float = 25.
     padded = np.pad(audio.astype(np.float64), (half, half + hop))
     centres = np.arange(n_frames) * hop + hop // 2 + half
     idx = centres[:, None] + np.arange(-half, win_length - half)[None, :]
-    frames = padded[idx] * np.hanning(win_length)[None, :]
+    frames = padded[idx] * _hann(win_length)[None, :]
     power = np.abs(np.fft.rfft(frames, n=win_length, axis=1)) ** 2 / win_length
     mel = power @ mel_filterbank(sample_rate, win_length, n_mels, fmin, fmax).T
     return np.log(mel + LOG_FLOOR).astype(np.float32)

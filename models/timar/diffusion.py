@@ -98,7 +98,10 @@ class GaussianDiffusion:
             last = acp[t]
         return cls(np.array(betas), keep)
 
-    def _take(self, name: str, t: torch.Tensor) -> torch.Tensor:
+    def _take(self, name: str, t: torch.Tensor | int) -> torch.Tensor:
+        """Table entries at steps ``t``: (B, 1) for a tensor of steps, a 0-d tensor for one step index."""
+        if isinstance(t, int):
+            return self._tables[name][t]
         return self._tables[name].to(t.device)[t].unsqueeze(-1)
 
     def q_sample(self, x0: torch.Tensor, t: torch.Tensor, noise: torch.Tensor) -> torch.Tensor:
@@ -107,7 +110,7 @@ class GaussianDiffusion:
     def _posterior_mean(self, x0: torch.Tensor, xt: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
         return self._take("posterior_coef1", t) * x0 + self._take("posterior_coef2", t) * xt
 
-    def p_mean_logvar(self, output: torch.Tensor, xt: torch.Tensor, t: torch.Tensor,
+    def p_mean_logvar(self, output: torch.Tensor, xt: torch.Tensor, t: torch.Tensor | int,
                       clamp_variance: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
         """(posterior mean, log variance, x0 prediction) from the network's 2C-channel output.
 
@@ -133,10 +136,11 @@ class GaussianDiffusion:
         return torch.where(t == 0, nll, kl)
 
     @torch.no_grad()
-    def sample(self, denoise: Callable[[torch.Tensor, torch.Tensor], torch.Tensor], shape: tuple[int, ...],
+    def sample(self, denoise: Callable[[torch.Tensor, int], torch.Tensor], shape: tuple[int, ...],
                generator: torch.Generator, temperature: float = 1.0,
                device: torch.device | str = "cpu", clamp_variance: bool = True) -> torch.Tensor:
-        """Ancestral sampling from pure noise; ``denoise(x_t, network_timesteps)`` returns 2C channels.
+        """Ancestral sampling from pure noise; ``denoise(x_t, i)`` returns 2C channels for step i, whose
+        network timestep is ``timestep_map[i]`` (every row of x_t is at the same step).
 
         All noise comes from ``generator`` in a fixed order (x_T first, then one draw per step with
         t > 0), so equal seeds give equal samples whatever the caller's cache state.
@@ -148,9 +152,7 @@ class GaussianDiffusion:
         """
         x = torch.randn(shape, generator=generator).to(device)
         for i in reversed(range(self.num_steps)):
-            t = torch.full(shape[:-1], i, dtype=torch.long, device=device)
-            mean, log_var, _ = self.p_mean_logvar(denoise(x, self.timestep_map.to(device)[t]), x, t,
-                                                  clamp_variance=clamp_variance)
+            mean, log_var, _ = self.p_mean_logvar(denoise(x, i), x, i, clamp_variance=clamp_variance)
             if i > 0:
                 noise = torch.randn(shape, generator=generator).to(device)
                 x = mean + torch.exp(0.5 * log_var) * noise * temperature

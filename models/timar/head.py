@@ -3,18 +3,24 @@
 ``y = cond_embed(z) + time_embed(t)`` modulates every block: ``h = LN(x)·(1 + scale) + shift``,
 ``x ← x + gate · MLP(h)``; a final modulated LayerNorm and a linear layer give 2·C channels
 (x0 prediction and the variance interpolation). Modulations and the output layer start at zero.
+
+The modulations depend on y only, not on x_t, so sampling computes them for all of its steps in one
+pass (:meth:`DiffusionHead.modulation`) and then runs only the x_t path per step
+(:meth:`DiffusionHead.denoise_modulated`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import torch
 from torch import nn
 
 
-def _modulate(x: torch.Tensor, shift: torch.Tensor, scale: torch.Tensor) -> torch.Tensor:
-    return x * (1 + scale) + shift
+def _modulate(x: torch.Tensor, shift: torch.Tensor, gain: torch.Tensor) -> torch.Tensor:
+    """``x·(1 + scale) + shift`` with ``gain = 1 + scale`` precomputed."""
+    return x * gain + shift
 
 
 class TimestepEmbedder(nn.Module):
@@ -32,6 +38,19 @@ class TimestepEmbedder(nn.Module):
         return self.mlp(torch.cat([torch.cos(args), torch.sin(args)], dim=-1))
 
 
+@dataclass(frozen=True)
+class Modulation:
+    """(shift, 1 + scale, gate) of every block and (shift, 1 + scale) of the final layer, computed from y."""
+
+    blocks: tuple[tuple[torch.Tensor, ...], ...]
+    final: tuple[torch.Tensor, ...]
+
+    def at(self, index: int) -> "Modulation":
+        """The modulation of entry ``index`` of the leading dimension (one sampling step)."""
+        return Modulation(tuple(tuple(m[index] for m in block) for block in self.blocks),
+                          tuple(m[index] for m in self.final))
+
+
 class ResBlock(nn.Module):
     def __init__(self, width: int):
         super().__init__()
@@ -39,9 +58,8 @@ class ResBlock(nn.Module):
         self.mlp = nn.Sequential(nn.Linear(width, width), nn.SiLU(), nn.Linear(width, width))
         self.modulation = nn.Sequential(nn.SiLU(), nn.Linear(width, 3 * width))
 
-    def forward(self, x: torch.Tensor, y: torch.Tensor) -> torch.Tensor:
-        shift, scale, gate = self.modulation(y).chunk(3, dim=-1)
-        return x + gate * self.mlp(_modulate(self.norm(x), shift, scale))
+    def forward(self, x: torch.Tensor, shift: torch.Tensor, gain: torch.Tensor, gate: torch.Tensor) -> torch.Tensor:
+        return x + gate * self.mlp(_modulate(self.norm(x), shift, gain))
 
 
 class DiffusionHead(nn.Module):
@@ -77,10 +95,21 @@ class DiffusionHead(nn.Module):
         return self.denoise(x, t, self.cond_embed(cond))
 
     def denoise(self, x: torch.Tensor, t: torch.Tensor, cond_embedding: torch.Tensor) -> torch.Tensor:
-        """``forward`` with ``cond_embed(cond)`` computed once by the caller (reused over sampling steps)."""
-        y = self.time_embed(t) + cond_embedding
+        """``forward`` with ``cond_embed(cond)`` computed by the caller."""
+        return self.denoise_modulated(x, self.modulation(self.time_embed(t) + cond_embedding))
+
+    def modulation(self, y: torch.Tensor) -> Modulation:
+        """Every block's and the final layer's modulation from y (..., width); any leading dimensions."""
+        def gained(shift: torch.Tensor, scale: torch.Tensor, *gate: torch.Tensor) -> tuple[torch.Tensor, ...]:
+            return (shift, 1 + scale, *gate)
+
+        return Modulation(tuple(gained(*block.modulation(y).chunk(3, dim=-1)) for block in self.blocks),
+                          gained(*self.final_modulation(y).chunk(2, dim=-1)))
+
+    def denoise_modulated(self, x: torch.Tensor, modulation: Modulation) -> torch.Tensor:
+        """The x_t path: (B, C) to (B, 2C) under a modulation with leading shape (B,)."""
         h = self.input_proj(x)
-        for block in self.blocks:
-            h = block(h, y)
-        shift, scale = self.final_modulation(y).chunk(2, dim=-1)
-        return self.final(_modulate(self.final_norm(h), shift, scale))
+        for block, (shift, gain, gate) in zip(self.blocks, modulation.blocks):
+            h = block(h, shift, gain, gate)
+        shift, gain = modulation.final
+        return self.final(_modulate(self.final_norm(h), shift, gain))

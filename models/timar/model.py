@@ -148,9 +148,13 @@ class TimarModel(nn.Module):
         outs = []
         for i in range(len(new)):
             current = len(past) + i
-            window = range(max(0, current - band), current + 1)
-            keys = torch.cat([turns[j][0] + offsets[current - j] for j in window], 2)
-            values = torch.cat([turns[j][1] for j in window], 2)
+            first = max(0, current - band)
+            window = turns[first:current + 1]
+            # keys of turn j shifted by the offset of its distance current - j (one broadcast add)
+            shift = offsets[torch.arange(current - first, -1, -1)].transpose(0, 1)  # (H, turns, 1, D/H)
+            keys = torch.cat([k for k, _ in window], 2)
+            keys = (keys.unflatten(2, (len(window), length)) + shift).flatten(2, 3)
+            values = torch.cat([v for _, v in window], 2)
             outs.append(block.attn.attend(q[:, :, i * length:(i + 1) * length], keys, values))
         return block.feed_forward(x + block.attn.merge(torch.cat(outs, 2))), new
 
@@ -270,12 +274,15 @@ class TimarModel(nn.Module):
         frames = cond.shape[1]
         channels = self.cfg.motion_dim
         embedded = self.head.cond_embed(cond.reshape(cond.shape[0] * frames, -1))
+        timesteps = self.sample_diffusion.timestep_map.to(cond.device)
+        # every step's modulation in one pass: (steps, branches·frames, ·)
+        modulation = self.head.modulation(self.head.time_embed(timesteps)[:, None] + embedded)
         if cond.shape[0] == 1:
-            def denoise(x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-                return self.head.denoise(x, t, embedded)
+            def denoise(x: torch.Tensor, i: int) -> torch.Tensor:
+                return self.head.denoise_modulated(x, modulation.at(i))
         else:
-            def denoise(x: torch.Tensor, t: torch.Tensor) -> torch.Tensor:
-                out = self.head.denoise(torch.cat([x, x]), torch.cat([t, t]), embedded)
+            def denoise(x: torch.Tensor, i: int) -> torch.Tensor:
+                out = self.head.denoise_modulated(torch.cat([x, x]), modulation.at(i))
                 c, u = out[:frames], out[frames:]
                 guided = u[:, :channels] + cfg_scale * (c[:, :channels] - u[:, :channels])
                 return torch.cat([guided, c[:, channels:]], dim=-1)
