@@ -12,8 +12,9 @@ shipped style evaluator (CE). Reference rows, run in the same pass:
   - GT (the ground truth itself).
 It also reports the style encoders' top-1 same-speaker retrieval (cosine nearest neighbour) against
 chance, and the velocity-loss ablation direction (FixRatio of SE-64-VEL vs SE-64, toward GT?): seeds 0–2 on
-the 16 embedded train sessions under both checkpoint selections, and seeds 0–4 on 64 generated train
-sessions (written into --work) under the spec's selection.
+the 16 embedded train sessions under both checkpoint selections, and, on 64 generated train sessions
+(written into --work) under the spec's selection, the spec's λ sweep (D21: λ = 1, 0.8, 0.5, 0.2) over
+seeds 0–9 with paired per-seed differences against λ = 1.
 The ratio column is Sim_seq over the naive static baseline's Sim_seq.
 
     python benchmarks/bench_stygazetalk_variants.py            # trains into runs/stygazetalk-variants
@@ -54,9 +55,12 @@ ABLATION = ("se64", "se64-vel")  # the velocity-loss ablation, repeated over see
 ABLATION_LABELS = (("se64", "SE-64"), ("se64-vel", "SE-64-VEL"))
 ABLATION_SEEDS = (0, 1, 2)
 # the same ablation on a larger generated train split (the 16 embedded train sessions overfit: SE-64-VEL's
-# lowest validation L_gen is at step 250 of 1,500), where the spec's selection keeps (nearly) final weights
+# lowest validation L_gen is at step 250 of 1,500), where the spec's selection keeps (nearly) final weights;
+# SE-64 trained with each λ of the spec's sweep (D21: 1 = SE-64, 0.5 = SE-64-VEL's default)
 LARGE_TRAIN_SESSIONS = 64
-LARGE_SEEDS = (0, 1, 2, 3, 4)
+LARGE_SEEDS = tuple(range(10))
+LARGE_LAMBDAS = (1.0, 0.8, 0.5, 0.2)
+LAMBDA_LABELS = {1.0: "SE-64", 0.5: "SE-64-VEL, D21 default"}
 PAPER = {  # Table 2 (All MAE, All Vel, All MEE, CE, All BAS) and Table 3 (fixation %, CompScore, SimScore)
     "GT": (None, None, None, None, None, 61.13, -0.3366, 1.0),
     "Base": (5.149, 6.840, 57.350, 0.139, 0.219, 74.17, -0.2890, 0.8220),
@@ -100,14 +104,15 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
                                           "--out", str(out)], standalone_mode=False)
                 paths[key] = out
     root = _large_train_root(work)
-    for variant in ABLATION:
+    for lam in LARGE_LAMBDAS:
         for seed in LARGE_SEEDS:
-            key = _large_key(variant, seed)
+            key = _large_key(lam, seed)
             out = work / f"tiny-{key}.pt"
             if not (reuse and out.is_file()):
-                train_generator.main(["--config", f"tiny-{variant}", "--seed", str(seed), "--threads", "1",
-                                      "--style-encoder", str(paths["style64"]), "--dataset", "gaze",
-                                      "--data", str(root), "--out", str(out)], standalone_mode=False)
+                train_generator.main(["--config", "tiny-se64", "--lam", str(lam), "--seed", str(seed),
+                                      "--threads", "1", "--style-encoder", str(paths["style64"]),
+                                      "--dataset", "gaze", "--data", str(root), "--out", str(out)],
+                                     standalone_mode=False)
             paths[key] = out
     return paths, seconds
 
@@ -124,8 +129,8 @@ def _large_train_root(work: Path) -> Path:
     return root
 
 
-def _large_key(variant: str, seed: int) -> str:
-    return f"{variant}-train{LARGE_TRAIN_SESSIONS}-seed{seed}"
+def _large_key(lam: float, seed: int) -> str:
+    return f"se64-lam{lam:g}-train{LARGE_TRAIN_SESSIONS}-seed{seed}"
 
 
 def _ablation_cells(runs: list[dict]) -> str:
@@ -134,11 +139,16 @@ def _ablation_cells(runs: list[dict]) -> str:
             f"{np.mean([m['comp_score'] for m in runs]):.3f} | {np.mean([m['sim_gt_seq'] for m in runs]):.3f}")
 
 
-def _direction(runs: dict[str, list[dict]], gt_fix: float) -> str:
-    """Whether SE-64-VEL's mean FixRatio is nearer the ground truth's than SE-64's."""
-    mean = {v: float(np.mean([m["fix_ratio"] for m in r])) for v, r in runs.items()}
-    toward = abs(mean["se64-vel"] - gt_fix) < abs(mean["se64"] - gt_fix)
-    return f"{'toward' if toward else 'AWAY FROM'} the ground truth"
+def _direction(without: list[dict], with_velocity: list[dict], gt_fix: float) -> str:
+    """Whether the mean FixRatio with the velocity loss is nearer the ground truth's than without it."""
+    before, after = (float(np.mean([m["fix_ratio"] for m in r])) for r in (without, with_velocity))
+    return f"{'toward' if abs(after - gt_fix) < abs(before - gt_fix) else 'AWAY FROM'} the ground truth"
+
+
+def _paired(without: list[dict], with_velocity: list[dict]) -> tuple[float, float, int]:
+    """Paired per-seed FixRatio differences (with − without): mean, standard error, seeds that decreased."""
+    diff = np.array([b["fix_ratio"] - a["fix_ratio"] for a, b in zip(without, with_velocity)])
+    return float(diff.mean()), float(diff.std(ddof=1) / math.sqrt(len(diff))), int((diff < 0).sum())
 
 
 def _ablation_key(variant: str, selection: str, seed: int) -> str:
@@ -286,20 +296,25 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
     for selection in ("val-loss", "last"):
         runs = {v: [ablation[_ablation_key(v, selection, seed)] for seed in ABLATION_SEEDS] for v in ABLATION}
         lines += [f"| {label} | {selection} | {_ablation_cells(runs[v])} |" for v, label in ABLATION_LABELS]
-        verdicts.append(f"{selection}: {_direction(runs, gt['fix_ratio'])}")
-    lines += ["", f"The same ablation trained on {LARGE_TRAIN_SESSIONS} generated train sessions (the 16 embedded ones "
-                  f"plus {LARGE_TRAIN_SESSIONS - 16} more of the same 8 speakers), seeds "
-                  f"{', '.join(map(str, LARGE_SEEDS))}, the spec's val-loss selection:", "",
-              "| variant | FixRatio per seed | mean FixRatio | mean CompScore | mean Sim_seq | best steps |",
-              "|---|---|---|---|---|---|"]
-    runs = {v: [ablation[_large_key(v, seed)] for seed in LARGE_SEEDS] for v in ABLATION}
-    for v, label in ABLATION_LABELS:
-        steps = [load_system(paths[_large_key(v, seed)])[1]["best_step"] for seed in LARGE_SEEDS]
-        lines.append(f"| {label} | {_ablation_cells(runs[v])} | " + ", ".join(map(str, steps)) + " |")
-    diff = np.array([b["fix_ratio"] - a["fix_ratio"] for a, b in zip(runs["se64"], runs["se64-vel"])])
-    verdicts.append(f"val-loss, {LARGE_TRAIN_SESSIONS} train sessions: {_direction(runs, gt['fix_ratio'])} "
-                    f"(paired SE-64-VEL − SE-64 per seed: " + " / ".join(f"{d:+.3f}" for d in diff)
-                    + f"; mean {diff.mean():+.3f} ± {diff.std(ddof=1) / np.sqrt(len(diff)):.3f} s.e.)")
+        verdicts.append(f"{selection}: {_direction(runs['se64'], runs['se64-vel'], gt['fix_ratio'])}")
+    lines += ["", f"The λ sweep of D21 (L = λ·MSE + (1 − λ)·velocity MSE) on {LARGE_TRAIN_SESSIONS} generated train "
+                  f"sessions (the 16 embedded ones plus {LARGE_TRAIN_SESSIONS - 16} more of the same 8 speakers), "
+                  f"SE-64 otherwise, seeds {LARGE_SEEDS[0]}–{LARGE_SEEDS[-1]}, the spec's val-loss selection; "
+                  "Δ = paired per-seed FixRatio difference against λ = 1, mean ± standard error:", "",
+              "| λ | FixRatio per seed | mean FixRatio | mean CompScore | mean Sim_seq | Δ FixRatio vs λ = 1 | "
+              "seeds lower | best steps |", "|---|---|---|---|---|---|---|---|"]
+    sweep = {lam: [ablation[_large_key(lam, seed)] for seed in LARGE_SEEDS] for lam in LARGE_LAMBDAS}
+    for lam, runs in sweep.items():
+        steps = sorted({load_system(paths[_large_key(lam, seed)])[1]["best_step"] for seed in LARGE_SEEDS})
+        label = f"{lam:g}" + (f" ({LAMBDA_LABELS[lam]})" if lam in LAMBDA_LABELS else "")
+        if lam == 1.0:
+            delta = "– | –"
+        else:
+            mean, se, lower = _paired(sweep[1.0], runs)
+            delta = f"{mean:+.3f} ± {se:.3f} | {lower} of {len(runs)}"
+            verdicts.append(f"λ = {lam:g}, {LARGE_TRAIN_SESSIONS} train sessions: "
+                            f"{_direction(sweep[1.0], runs, gt['fix_ratio'])} ({mean / se:+.1f} s.e.)")
+        lines.append(f"| {label} | {_ablation_cells(runs)} | {delta} | " + ", ".join(map(str, steps)) + " |")
     lines += ["", "Mean over seeds, the velocity loss moves FixRatio — " + "; ".join(verdicts) + ".",
               "", "Style transfer (SE-64-VEL, mean decoding; style_from = another test session; cosine between "
                   "session styles, i.e. mean evaluator embeddings): "
