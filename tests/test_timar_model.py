@@ -10,6 +10,7 @@ import torch
 
 from models.timar.config import preset
 from models.timar.diffusion import GaussianDiffusion, cosine_betas, space_timesteps
+from models.timar.head import DiffusionHead
 from models.timar.model import TimarModel, agent_motion_slice, count_parameters
 
 MICRO = dict(token_dim=16, dim=16, heads=2, depth=2, head_width=16, frames_per_turn=5, samples_per_turn=3200,
@@ -184,3 +185,17 @@ def test_sampling_clamps_the_variance_interpolation_to_its_range():
     torch.testing.assert_close(edge, torch.full_like(edge, math.log(d.betas[1])))
     free = d.p_mean_logvar(torch.cat([x0, torch.full((3, 56), 5.0)], -1), xt, t)[1]
     assert (free > edge).all()
+
+
+def test_precomputed_step_modulations_equal_the_per_step_head():
+    """Sampling computes every step's modulation in one pass; each step must equal the head's own call."""
+    torch.manual_seed(0)
+    head = DiffusionHead(56, 32, 48, 2)
+    for p in head.parameters():  # modulations start at zero: give them values
+        torch.nn.init.normal_(p, std=0.2)
+    x, cond = torch.randn(7, 56), head.cond_embed(torch.randn(7, 32))
+    timesteps = torch.tensor([0, 250, 500, 749, 999])
+    modulation = head.modulation(head.time_embed(timesteps)[:, None] + cond)
+    for i, t in enumerate(timesteps):
+        expected = head.denoise(x, torch.full((7,), int(t)), cond)
+        torch.testing.assert_close(head.denoise_modulated(x, modulation.at(i)), expected, rtol=0, atol=1e-5)

@@ -151,7 +151,8 @@ class TimarModel(nn.Module):
             first = max(0, current - band)
             window = turns[first:current + 1]
             # keys of turn j shifted by the offset of its distance current - j (one broadcast add)
-            shift = offsets[torch.arange(current - first, -1, -1)].transpose(0, 1)  # (H, turns, 1, D/H)
+            distances = torch.arange(current - first, -1, -1, device=offsets.device)
+            shift = offsets[distances].transpose(0, 1)  # (H, turns, 1, D/H)
             keys = torch.cat([k for k, _ in window], 2)
             keys = (keys.unflatten(2, (len(window), length)) + shift).flatten(2, 3)
             values = torch.cat([v for _, v in window], 2)
