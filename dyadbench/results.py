@@ -16,7 +16,7 @@ import json
 import math
 import platform
 import subprocess
-from dataclasses import asdict, dataclass, field, fields
+from dataclasses import MISSING, asdict, dataclass, field, fields
 from datetime import datetime, timezone
 from importlib import metadata
 from pathlib import Path
@@ -67,6 +67,7 @@ class TimingRecord:
     model_s: float  # summed time inside the model's calls
     turns: int
     mean_turn_latency_s: float
+    threads: int | None = None  # CPU threads per process (--threads); None: the libraries' default
 
 
 @dataclass
@@ -137,12 +138,13 @@ class EvalResult:
 def _record(record: type, value: object, source: str | Path, key: str):
     if not isinstance(value, dict):
         raise InputError(source, f"field {key!r} missing or not an object")
-    names = [f.name for f in fields(record)]
-    missing = [n for n in names if n not in value]
+    missing = [f.name for f in fields(record) if f.name not in value and f.default is MISSING]
     if missing:
         raise InputError(source, f"field {key!r} lacks {', '.join(missing)}")
-    for name, hint in get_type_hints(record).items():
-        allowed = _ALLOWED[hint]
+    names = [f.name for f in fields(record) if f.name in value]  # fields with defaults may be absent (older files)
+    hints = get_type_hints(record)
+    for name in names:
+        allowed = _ALLOWED[hints[name]]
         v = value[name]
         if isinstance(v, bool) and bool not in allowed or not isinstance(v, allowed):
             raise InputError(source, f"{key}.{name} has the wrong type ({type(v).__name__}: {v!r})")
@@ -150,7 +152,7 @@ def _record(record: type, value: object, source: str | Path, key: str):
 
 
 _ALLOWED = {str: (str,), int: (int,), float: (int, float), bool: (bool,), dict: (dict,),
-            str | None: (str, type(None))}
+            str | None: (str, type(None)), int | None: (int, type(None))}
 
 
 def _numbers(value: object, source: str | Path, key: str) -> dict[str, float]:

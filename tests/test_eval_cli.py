@@ -120,6 +120,18 @@ def test_parallel_streaming_matches_serial(dualtalk_dir, tmp_path):
         np.testing.assert_array_equal(np.load(f), np.load(b / "predictions" / f.name))
 
 
+def test_thread_cap_is_recorded_and_does_not_change_predictions(dualtalk_dir, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    _run(["eval", "--model", "random", "--data", str(dualtalk_dir), "--context", "1", "--out", str(a)])
+    _run(["eval", "--model", "random", "--data", str(dualtalk_dir), "--context", "1", "--out", str(b),
+          "--threads", "1"])
+    assert load_result(a / "result.json").timing.threads is None
+    assert load_result(b / "result.json").timing.threads == 1
+    assert load_result(a / "result.json").metrics == load_result(b / "result.json").metrics
+    for f in (a / "predictions").iterdir():
+        np.testing.assert_array_equal(np.load(f), np.load(b / "predictions" / f.name))
+
+
 @pytest.mark.parametrize("args,message", [
     (["eval", "--model", "mean-frme"], "did you mean mean-frame"),
     (["eval", "--model", "zero", "--dataset", "dualtalk"], "needs --data"),

@@ -22,7 +22,7 @@ EMBEDDED = "synthetic"
 
 
 def data_options(f: Callable) -> Callable:
-    """--data / --dataset / --clips / --jobs, shared by ``eval`` and ``sweep``."""
+    """--data / --dataset / --clips / --jobs / --threads, shared by ``eval`` and ``sweep``."""
     options = [
         click.option("--data", "data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
                      help="Dataset root (e.g. a DualTalk folder holding train/ test/ ood/). Without it the "
@@ -33,6 +33,11 @@ def data_options(f: Callable) -> Callable:
                      help="Only the first N clips of the split (sorted ids), for quick runs."),
         click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
                      help="Worker processes for streaming clips and for scoring."),
+        click.option("--threads", default=None, type=click.IntRange(min=1),
+                     help="CPU threads per process (recorded). Default: the libraries' own with --jobs 1, "
+                          "1 per worker otherwise. Use 1 when other jobs share the machine: small models "
+                          "stream fastest on one thread, and more threads than free cores can slow "
+                          "streaming down about tenfold."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
@@ -79,13 +84,13 @@ def open_splits(data: Path | None, dataset: str, split: str) -> tuple[ClipSource
 
 def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
             cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
-            predictions_dir: Path | None, extra: dict | None = None) -> EvalResult:
+            predictions_dir: Path | None, extra: dict | None = None, threads: int | None = None) -> EvalResult:
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
     options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
                            extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
-                    predictions_dir=predictions_dir)
+                    predictions_dir=predictions_dir, threads=threads)
 
 
 def style_reference(source: ClipSource, style_from: str) -> str | object:
@@ -139,7 +144,7 @@ def write_per_clip(result: EvalResult, path: Path) -> Path:
                    "[default: runs/<model>_<dataset>_<split>_n<context>].")
 def eval_command(model: str, split: str, context: int, turn_seconds: float, tail: str, history_agent: str,
                  seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
-                 clips: int | None, jobs: int, style_from: str | None, out: Path | None) -> None:
+                 clips: int | None, jobs: int, threads: int | None, style_from: str | None, out: Path | None) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
@@ -157,7 +162,7 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
     extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
     result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips, jobs=jobs,
-                     predictions_dir=out / "predictions", extra=extra)
+                     predictions_dir=out / "predictions", extra=extra, threads=threads)
     result_path = result.write(out / "result.json")
     csv_path = write_per_clip(result, out / "per_clip.csv")
     click.echo(summary(result))

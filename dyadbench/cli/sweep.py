@@ -55,7 +55,8 @@ def _csv(value: str, what: str) -> list[str]:
 @click.option("--force", is_flag=True, help="Re-run and overwrite runs whose result file exists.")
 def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: str, history_agent: str, seed: int,
           cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None, clips: int | None,
-          jobs: int, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool) -> None:
+          jobs: int, threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool,
+          force: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
     \b
@@ -85,6 +86,6 @@ def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: st
                 preds = (result_path(keep_predictions, dataset_name, split, context, name).with_suffix("")
                          if keep_predictions else None)
                 result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
-                                 jobs=jobs, predictions_dir=preds)
+                                 jobs=jobs, predictions_dir=preds, threads=threads)
                 click.echo(summary(result).splitlines()[0] + f" -> {path}")
                 (result if per_clip else without_per_clip(result)).write(path)

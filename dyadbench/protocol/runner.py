@@ -93,11 +93,16 @@ def _stream_clip(model, source: ClipSource, clip_id: str, config: ProtocolConfig
 _WORKER: dict = {}
 
 
-def _init_worker(model_name: str, options: ModelOptions, source: ClipSource, config: ProtocolConfig,
-                 keep_audio: bool) -> None:
-    os.environ.setdefault("OMP_NUM_THREADS", "1")  # workers share the machine: one thread each
+def set_threads(threads: int) -> None:
+    """Cap this process's BLAS/OpenMP and torch CPU threads (torch only if a model already loaded it)."""
+    os.environ["OMP_NUM_THREADS"] = str(threads)
     if "torch" in sys.modules:
-        sys.modules["torch"].set_num_threads(1)
+        sys.modules["torch"].set_num_threads(threads)
+
+
+def _init_worker(model_name: str, options: ModelOptions, source: ClipSource, config: ProtocolConfig,
+                 keep_audio: bool, threads: int | None) -> None:
+    set_threads(threads or 1)  # workers share the machine: one thread each unless told otherwise
     _WORKER.update(model=build_model(model_name, options), source=source, config=config, keep_audio=keep_audio)
 
 
@@ -108,12 +113,15 @@ def _worker_clip(clip_id: str) -> list[_Streamed]:
 
 def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, options: ModelOptions | None = None,
              clips: int | None = None, jobs: int = 1, predictions_dir: Path | None = None,
-             progress: bool = True) -> EvalResult:
+             progress: bool = True, threads: int | None = None) -> EvalResult:
     """Run ``model_name`` over ``source`` under ``config`` and score it (see module docstring).
 
     ``predictions_dir``: where ``<stem>.npy`` files go (None: a temporary folder, removed after scoring).
     ``clips``: only the first N clips (sorted ids). The model's options get ``extra["layout"]`` and
     ``extra["turn_seconds"]`` from the split and the protocol.
+    ``threads``: CPU threads per process (None: the libraries' default in-process, 1 per worker). Per-turn
+    work of small models is too fine-grained to gain from threads, and threads beyond the free cores
+    (another job running) can make streaming an order of magnitude slower.
     """
     started = time.perf_counter()
     ids = source.clip_ids()
@@ -130,6 +138,8 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     options = options or ModelOptions(seed=config.seed)
     options = replace(options, extra={**options.extra, "layout": layout, "turn_seconds": config.turn_seconds})
     model = build_model(model_name, options)
+    if threads is not None:
+        set_threads(threads)
     if model.info.layout != layout:
         raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion; the split is {layout}")
     keep_audio = suite == "gaze"
@@ -143,7 +153,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     try:
         bar = tqdm(total=len(ids), desc=f"{model_name} {source.dataset}/{source.split} n={config.context}",
                    unit="clip", disable=not progress)
-        for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs):
+        for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads):
             for s in streamed:
                 atomic.save_npy(pred_dir / f"{s.output.stem}.npy", s.output.motion.astype(np.float32))
                 items.append(s.item)
@@ -174,7 +184,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                                      f"(sha256 {reused[:16]})"] if reused else []),
         predictions=None if temporary else str(pred_dir),
         timing=TimingRecord(wall_s=time.perf_counter() - started, model_s=model_s, turns=len(latencies),
-                            mean_turn_latency_s=model_s / max(len(latencies), 1)),
+                            mean_turn_latency_s=model_s / max(len(latencies), 1), threads=threads),
         environment=environment(), created_utc=utc_now())
 
 
@@ -234,7 +244,7 @@ def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int, opt
     return report, None
 
 
-def _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs):
+def _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads):
     """Yield, clip by clip in order, the streamed directions (in-process or in ``jobs`` workers)."""
     if jobs <= 1 or len(ids) == 1:
         for clip_id in ids:
@@ -249,5 +259,5 @@ def _stream_all(model, model_name, options, source, ids, config, keep_audio, job
     # (forking after torch's thread pools have started is unsafe).
     method = "spawn" if "torch" in sys.modules or sys.platform != "linux" else "fork"
     with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context(method), initializer=_init_worker,
-                             initargs=(model_name, options, source, config, keep_audio)) as pool:
+                             initargs=(model_name, options, source, config, keep_audio, threads)) as pool:
         yield from pool.map(_worker_clip, ids, chunksize=max(1, min(16, len(ids) // (4 * jobs))))
