@@ -83,7 +83,7 @@ def train_timar(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train timar --config tiny --stride 4 --epochs 6 --warmup-epochs 0.05 \\
+      OMP_NUM_THREADS=1 dyadbench train timar --config tiny --stride 4 --epochs 10 --warmup-epochs 0.05 \\
           --seed 0 --export models/timar/checkpoints/timar-tiny.pt
     Multi-GPU: torchrun --nproc_per_node 8 -m dyadbench train timar --config large --device cuda ...
     """
@@ -97,7 +97,7 @@ def train_timar_stream(**kwargs) -> None:
 
     \b
     Reproduces the shipped checkpoint (models/timar/checkpoints/timar-stream-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train timar-stream --config tiny --stride 4 --epochs 6 --warmup-epochs 0.05 \\
+      OMP_NUM_THREADS=1 dyadbench train timar-stream --config tiny --stride 4 --epochs 10 --warmup-epochs 0.05 \\
           --seed 0 --export models/timar/checkpoints/timar-stream-tiny.pt
     """
     _run("stream", **kwargs)
