@@ -94,8 +94,12 @@ _WORKER: dict = {}
 
 
 def set_threads(threads: int) -> None:
-    """Cap this process's BLAS/OpenMP and torch CPU threads (torch only if a model already loaded it)."""
+    """Cap this process's CPU threads: the loaded BLAS/OpenMP pools (threadpoolctl), libraries loaded later
+    (OMP_NUM_THREADS) and torch's intra-op pool if a model already imported torch."""
+    from threadpoolctl import threadpool_limits  # noqa: PLC0415  (a scikit-learn dependency)
+
     os.environ["OMP_NUM_THREADS"] = str(threads)
+    threadpool_limits(limits=threads)
     if "torch" in sys.modules:
         sys.modules["torch"].set_num_threads(threads)
 
