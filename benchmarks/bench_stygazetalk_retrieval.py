@@ -38,7 +38,8 @@ SESSIONS = {split: DEFAULT_SESSIONS[split] for split in ("train", "val", "test")
 def style_spread() -> tuple[float, float]:
     """Median over style parameters of the between-speaker and within-speaker (session) variance, both in
     units of the parameter's variance over all the sessions of SESSIONS."""
-    rows = [make_gaze_session(split, i, SYNTHETIC_SEED, duration_s=1.0).meta for split, n in SESSIONS.items() for i in range(n)]
+    rows = [make_gaze_session(split, i, SYNTHETIC_SEED, duration_s=1.0).meta
+            for split, n in SESSIONS.items() for i in range(n)]
     names = [k for k in rows[0]["style"] if k != "sync"]
     p = np.array([[r["style"][k] for k in names] for r in rows])
     spk = np.array([r["speaker"] for r in rows])
@@ -90,7 +91,8 @@ def main(encoders: tuple[Path, ...], out: Path) -> None:
              f"embedded `{DATASET}` sessions, non-overlapping {WINDOW}-frame windows, cosine top-1; cells are "
              "accuracy / chance).", "",
              f"True style parameters (median over the 13 jittered parameters, variance in units of the variance "
-             f"over all {sum(SESSIONS.values())} sessions): between speakers {between:.3f}, between one speaker's sessions {within:.3f} "
+             f"over all {sum(SESSIONS.values())} sessions): between speakers {between:.3f}, "
+             f"between one speaker's sessions {within:.3f} "
              f"(ratio {between / within:.1f}); the session jitter does not swamp the speakers.", "",
              "| embedding | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for name, res in rows.items():

@@ -297,8 +297,9 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
         runs = {v: [ablation[_ablation_key(v, selection, seed)] for seed in ABLATION_SEEDS] for v in ABLATION}
         lines += [f"| {label} | {selection} | {_ablation_cells(runs[v])} |" for v, label in ABLATION_LABELS]
         verdicts.append(f"{selection}: {_direction(runs['se64'], runs['se64-vel'], gt['fix_ratio'])}")
-    lines += ["", f"The λ sweep of D21 (L = λ·MSE + (1 − λ)·velocity MSE) on {LARGE_TRAIN_SESSIONS} generated train "
-                  f"sessions (the 16 embedded ones plus {LARGE_TRAIN_SESSIONS - 16} more of the same 8 speakers), "
+    lines += ["", "The λ sweep of D21 (L = λ·MSE + (1 − λ)·velocity MSE) on "
+                  f"{LARGE_TRAIN_SESSIONS} generated train sessions (the 16 embedded ones plus "
+                  f"{LARGE_TRAIN_SESSIONS - 16} more of the same 8 speakers), "
                   f"SE-64 otherwise, seeds {LARGE_SEEDS[0]}–{LARGE_SEEDS[-1]}, the spec's val-loss selection; "
                   "Δ = paired per-seed FixRatio difference against λ = 1, mean ± standard error:", "",
               "| λ | FixRatio per seed | mean FixRatio | mean CompScore | mean Sim_seq | Δ FixRatio vs λ = 1 | "
