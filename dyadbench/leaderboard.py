@@ -27,12 +27,14 @@ import pandas as pd
 
 from dyadbench.errors import InputError
 from dyadbench.motion import LAYOUTS
+from dyadbench.protocol.config import variant_label
 from dyadbench.results import results_frame
 
 SETTING = ["source", "dataset", "split", "protocol", "context"]
 LONG_COLUMNS = ["source", "model", "oracle", "dataset", "split", "protocol", "context", "suite", "metric",
                 "component", "raw", "scaled", "scale", "higher_is_better", "items", "seed", "tail",
                 "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
+_VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed"]
 _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
 
 
@@ -113,7 +115,8 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
     index = SETTING + ["model", "oracle"]
     if part.empty:
         return pd.DataFrame(columns=index + ["rank", "items"] + columns)
-    part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""))
+    part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
+                       model=_variant_models(part))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
     items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
     wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + columns)
@@ -125,6 +128,25 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
                                 .rank(method="min", ascending=ascending).astype("Int64"))
     wide = wide.sort_values(SETTING + ["oracle", "rank", "model"], kind="stable", na_position="last")
     return wide[index + ["rank", "items"] + columns].reset_index(drop=True)
+
+
+def _variant_models(part: pd.DataFrame) -> pd.Series:
+    """Model labels with the run's non-default protocol settings, e.g. ``timar (cfg2)``.
+
+    Runs of one model that differ only in guidance scale, seed, tail, history policy or turn length
+    then stay separate rows of the wide table instead of being merged. Published rows (no settings
+    recorded) keep their names.
+    """
+    columns = ["model", *_VARIANT_KEYS]
+    keys = part[columns].astype(object).where(part[columns].notna(), None)
+    labels = {}
+    for record in keys.drop_duplicates().itertuples(index=False):
+        settings = {k: v for k, v in zip(_VARIANT_KEYS, record[1:]) if v is not None}
+        if "seed" in settings:
+            settings["seed"] = int(settings["seed"])
+        variant = variant_label(**settings)
+        labels[tuple(record)] = f"{record[0]} ({variant})" if variant else record[0]
+    return pd.Series([labels[tuple(r)] for r in keys.itertuples(index=False)], index=part.index)
 
 
 def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) -> str:

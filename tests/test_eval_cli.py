@@ -12,7 +12,8 @@ from click.testing import CliRunner
 
 from dyadbench.cli import cli
 from dyadbench.errors import ConfigError, InputError
-from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.leaderboard import long_table, wide_table
+from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.runner import evaluate
 from dyadbench.results import load_result, results_frame
@@ -95,6 +96,31 @@ def test_sweep_runs_n_0_3_7_and_adds_rows_without_rerunning(dualtalk_dir, tmp_pa
     again = _run(args + ["--models", "mean-frame,mime"])
     assert again.output.count("skip") == 3
     assert len(list(out.rglob("*.json"))) == 9
+
+
+def test_sweep_variants_get_their_own_files_and_rows(dualtalk_dir, tmp_path):
+    out = tmp_path / "results"
+    base = ["sweep", "--models", "random", "--splits", "test", "--contexts", "3", "--data", str(dualtalk_dir),
+            "--out", str(out), "--no-per-clip"]
+    _run(base)
+    seeded = _run(base + ["--seed", "1"])
+    assert "skip" not in seeded.output  # the default run's file does not stand in for seed 1
+    assert sorted(f.name for f in (out / "dualtalk/test/n3").iterdir()) == ["random.json", "random@seed1.json"]
+    default, other = (load_result(out / "dualtalk/test/n3" / name) for name in ("random.json", "random@seed1.json"))
+    assert (default.protocol.seed, other.protocol.seed) == (0, 1)
+    assert default.metrics["fd_exp"] != other.metrics["fd_exp"]  # random frames: another seed, other numbers
+    assert _run(base + ["--seed", "1"]).output.count("skip") == 1
+    wide = wide_table(long_table([out]))
+    rows = wide.set_index("model")["fd_exp"]
+    assert sorted(rows.index) == ["random", "random (seed1)"]
+    assert rows["random"] == default.scaled["fd_exp"] and rows["random (seed1)"] == other.scaled["fd_exp"]
+
+
+def test_variant_label_names_only_non_default_settings():
+    assert variant_label() == ""
+    assert variant_label(cfg_scale=2.0) == "cfg2"
+    assert variant_label(turn_seconds=2.0, tail="pad-last", history_agent="outputs", cfg_scale=1.5,
+                         seed=3) == "turn2s+tail-pad-last+history-outputs+cfg1.5+seed3"
 
 
 def test_parallel_streaming_refuses_unpicklable_options(tmp_path):

@@ -1,6 +1,8 @@
 """``dyadbench sweep``: evaluate models over splits and context lengths, one result file per run.
 
-Each run writes ``OUT/<dataset>/<split>/n<context>/<model>.json``. Runs whose file exists are skipped
+Each run writes ``OUT/<dataset>/<split>/n<context>/<model>.json``, or ``<model>@<variant>.json`` when a
+protocol setting differs from the default (e.g. ``timar@cfg2.json`` for ``--cfg-scale 2``; see
+:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. Runs whose file exists are skipped
 (unless --force), so adding a model's rows never re-runs the others; ``dyadbench leaderboard OUT``
 then rebuilds the tables from every file.
 """
@@ -14,13 +16,14 @@ import click
 
 from dyadbench.cli.eval import data_options, open_splits, protocol_options, resolve_dataset, run_one, summary
 from dyadbench.errors import ConfigError
-from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.registry import MODELS
 from dyadbench.results import EvalResult
 
 
-def result_path(out: Path, dataset: str, split: str, context: int, model: str) -> Path:
-    return out / dataset / split / f"n{context}" / f"{model}.json"
+def result_path(out: Path, dataset: str, split: str, context: int, model: str, variant: str = "") -> Path:
+    """Where a sweep run's result file goes (``variant``: :func:`~dyadbench.protocol.config.variant_label`)."""
+    return out / dataset / split / f"n{context}" / (f"{model}@{variant}.json" if variant else f"{model}.json")
 
 
 def without_per_clip(result: EvalResult) -> EvalResult:
@@ -45,7 +48,8 @@ def _csv(value: str, what: str) -> list[str]:
 @protocol_options
 @data_options
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("results"),
-              show_default=True, help="Result folder: OUT/<dataset>/<split>/n<context>/<model>.json.")
+              show_default=True, help="Result folder: OUT/<dataset>/<split>/n<context>/<model>.json "
+                   "(<model>@<variant>.json for non-default settings, e.g. timar@cfg2.json).")
 @click.option("--keep-predictions", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Also keep the prediction files under DIR/<dataset>/<split>/n<context>/<model>/ "
                    "(default: written to a temporary folder and removed after scoring).")
@@ -78,12 +82,14 @@ def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: st
         for context in context_list:
             config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail,
                                     history_agent=history_agent, seed=seed)
+            variant = variant_label(turn_seconds=turn_seconds, tail=tail, history_agent=history_agent,
+                                    cfg_scale=cfg_scale, seed=seed)
             for name in names:
-                path = result_path(out, dataset_name, split, context, name)
+                path = result_path(out, dataset_name, split, context, name, variant)
                 if path.exists() and not force:
                     click.echo(f"skip {path} (exists; --force re-runs)")
                     continue
-                preds = (result_path(keep_predictions, dataset_name, split, context, name).with_suffix("")
+                preds = (result_path(keep_predictions, dataset_name, split, context, name, variant).with_suffix("")
                          if keep_predictions else None)
                 result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
                                  jobs=jobs, predictions_dir=preds, threads=threads)

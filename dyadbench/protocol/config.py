@@ -67,3 +67,31 @@ def _whole(value: float, what: str, unit: str) -> int:
     if abs(value - count) > _INTEGER_TOLERANCE * max(1.0, abs(value)) or count < 1:
         raise ConfigError(f"{what} is {value:g} {unit} per turn; a turn must hold a whole number >= 1 of {unit}")
     return int(count)
+
+
+_DEFAULT = ProtocolConfig()
+DEFAULT_CFG_SCALE = 1.0  # guidance off, as in TIMAR's published runs
+
+
+def variant_label(*, turn_seconds: float = _DEFAULT.turn_seconds, tail: str = _DEFAULT.tail,
+                  history_agent: str = _DEFAULT.history_agent, cfg_scale: float = DEFAULT_CFG_SCALE,
+                  seed: int = _DEFAULT.seed) -> str:
+    """Short name of a run's settings that differ from the default protocol ("" when none do).
+
+    Used to keep runs of one model apart that differ only in these settings: the sweep's result file
+    names (``<model>@<label>.json``) and the model labels of the wide leaderboards, e.g.
+    ``cfg2+seed1`` for guidance scale 2 with run seed 1. Context is not part of it (it has its own
+    folder and column).
+    """
+    parts = []
+    if turn_seconds != _DEFAULT.turn_seconds:
+        parts.append(f"turn{turn_seconds:g}s")
+    if tail != _DEFAULT.tail:
+        parts.append(f"tail-{tail}")
+    if history_agent != _DEFAULT.history_agent:
+        parts.append(f"history-{history_agent}")
+    if cfg_scale != DEFAULT_CFG_SCALE:
+        parts.append(f"cfg{cfg_scale:g}")
+    if seed != _DEFAULT.seed:
+        parts.append(f"seed{seed}")
+    return "+".join(parts)
