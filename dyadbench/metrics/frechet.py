@@ -56,3 +56,19 @@ def frechet_distance(mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sigma
 def frechet_between(x: np.ndarray, y: np.ndarray) -> float:
     """Fréchet distance between Gaussians fitted to the frames of ``x`` and ``y`` (T, d)."""
     return frechet_distance(*gaussian_stats(x), *gaussian_stats(y))
+
+
+def frechet_terms(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
+    """The Fréchet distance of :func:`frechet_between` split into its mean and covariance terms.
+
+    .. math:: \\mathrm{FD} = \\underbrace{\\lVert\\mu_x-\\mu_y\\rVert^2}_{\\text{mean term}}
+              + \\underbrace{\\operatorname{tr}\\Sigma_x + \\operatorname{tr}\\Sigma_y
+              - 2\\operatorname{tr}\\sqrt{\\Sigma_x\\Sigma_y}}_{\\text{covariance term}}
+
+    Returns (mean term, covariance term); they sum to ``frechet_between(x, y)``. A copy of ``y`` moved by
+    a constant offset has covariance term 0 (up to round-off), so its distance is the offset's squared norm.
+    """
+    mu_x, sigma_x = gaussian_stats(x)
+    mu_y, sigma_y = gaussian_stats(y)
+    diff = mu_x - mu_y
+    return float(diff.dot(diff)), frechet_distance(mu_x, sigma_x, mu_y, sigma_y) - float(diff.dot(diff))
