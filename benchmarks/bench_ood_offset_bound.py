@@ -24,6 +24,7 @@ split and component, averaged over every agent of the split:
 
 from __future__ import annotations
 
+import shlex
 import sys
 from pathlib import Path
 
@@ -125,7 +126,7 @@ def main(splits: str, pred: tuple[str, ...], out: Path) -> None:
     preds = _pred_option(pred)
     mean, rest = train_means()
     lines = ["# FD on unseen people: the mean term", "",
-             "Produced by `python benchmarks/bench_ood_offset_bound.py" + "".join(f" --pred {p}" for p in pred)
+             "Produced by `python benchmarks/bench_ood_offset_bound.py" + "".join(f" --pred {shlex.quote(p)}" for p in pred)
              + f" --splits {splits}` (embedded corpus; FD in publication scaling: jaw ×10³, pose ×10²; "
              "each cell is the mean over agents of FD = mean term + covariance term).", ""]
     for split in splits.split(","):
