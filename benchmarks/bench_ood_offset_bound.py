@@ -35,14 +35,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from dyadbench import atomic  # noqa: E402
 from dyadbench.datasets.dualtalk_files import load_prediction  # noqa: E402
-from dyadbench.metrics.dualtalk import truncate_to_shortest  # noqa: E402
+from dyadbench.metrics.dualtalk import SCALE, truncate_to_shortest  # noqa: E402
 from dyadbench.metrics.frechet import frechet_terms  # noqa: E402
 from dyadbench.motion import FLAME56, FLAME_COMPONENTS  # noqa: E402
 from dyadbench.registry import DATASETS  # noqa: E402
 from dyadbench.datasets.synthetic import DEFAULT_SEED  # noqa: E402
 from dyadbench.synth.styles import STYLE_RANGES, style_pool  # noqa: E402
 
-SCALE = {"exp": 1.0, "jaw": 1e3, "pose": 1e2}  # publication scaling of FD
 JAW_REST = {s.identity: s.jaw_rest for pool in STYLE_RANGES for s in style_pool(pool, DEFAULT_SEED)}
 JAW_OPENING = FLAME56.components["jaw"].start  # jaw 0 = opening (dyadbench.synth.corpus)
 OUT = Path(__file__).resolve().parent / "results" / "ood_offset_bound.md"
@@ -101,7 +100,7 @@ def render(split: str, n_agents: int, names: list[str], means: dict[str, np.ndar
     for name in names:
         cells = []
         for c in FLAME_COMPONENTS:
-            mean_term, cov_term = (round(v, 3) + 0.0 for v in means[f"{name}|{c}"] * SCALE[c])  # no "-0.000"
+            mean_term, cov_term = (round(v, 3) + 0.0 for v in means[f"{name}|{c}"] * SCALE[f"fd_{c}"])  # no "-0.000"
             cells.append(f"{mean_term + cov_term:.3f} ({mean_term:.3f} + {cov_term:.3f})")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return lines + [""]

@@ -47,8 +47,8 @@ def _run(job: tuple[str, str, float, int, int, int]) -> tuple[str, str, float, d
 def _verdicts(row: dict[str, float], best: dict[str, float]) -> str:
     """Which of FD / P-FD exp, jaw, pose (and MSE jaw) beat the split's best baseline."""
     checked = [f"fd_{c}" for c in ("exp", "jaw", "pose")] + [f"pfd_{c}" for c in ("exp", "jaw", "pose")] + ["mse_jaw"]
-    lost = [k.replace("pfd", "P-FD").replace("fd", "FD").replace("mse", "MSE").replace("_", " ")
-            for k in checked if row[k] >= best[k]]
+    header = dict(zip(KEYS, HEADERS))
+    lost = [header[k] for k in checked if row[k] >= best[k]]
     return "beats all" if not lost else "loses on " + ", ".join(lost)
 
 

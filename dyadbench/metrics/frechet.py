@@ -70,5 +70,5 @@ def frechet_terms(x: np.ndarray, y: np.ndarray) -> tuple[float, float]:
     """
     mu_x, sigma_x = gaussian_stats(x)
     mu_y, sigma_y = gaussian_stats(y)
-    diff = mu_x - mu_y
-    return float(diff.dot(diff)), frechet_distance(mu_x, sigma_x, mu_y, sigma_y) - float(diff.dot(diff))
+    mean_term = float((mu_x - mu_y).dot(mu_x - mu_y))
+    return mean_term, frechet_distance(mu_x, sigma_x, mu_y, sigma_y) - mean_term
