@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 import torch
 
+from dyadbench.errors import ConfigError
 from models.sfms.config import tokenizer_preset
 from models.sfms.tokenizer import SFMSTokenizer
 from models.sfms.train_tokenizer import fit_tokenizer, reconstruction_mse
@@ -40,6 +41,21 @@ def test_encode_gives_exactly_k_keyframes_and_is_deterministic():
     assert (codes[~mask] == -1).all()
     assert torch.equal(model.encode(m)[0], classes)
     assert model.decode(classes).shape == m.shape
+
+
+def test_suppression_radius_spaces_the_keyframes_in_encode_and_training():
+    model = SFMSTokenizer(micro(keyframes=7, suppression_radius=3)).eval()
+    _, mask, _ = model.encode(torch.as_tensor(smooth_windows(5)))
+    assert mask.sum(1).tolist() == [7] * 5
+    for row in mask.numpy():
+        assert np.all(np.diff(np.flatnonzero(row)) > 3)
+    losses = model.train()(torch.as_tensor(smooth_windows(4)), generator=torch.Generator().manual_seed(0))
+    assert torch.isfinite(losses["loss"]) and losses["mask"] > 0
+
+
+def test_negative_suppression_radius_is_rejected():
+    with pytest.raises(ConfigError, match="suppression_radius"):
+        micro(suppression_radius=-1)
 
 
 @pytest.mark.parametrize("n_kf", [0, 1, 7, 48])

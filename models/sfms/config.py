@@ -33,6 +33,9 @@ D25   predictor layer counts (``speaker_layers`` … ``decoder_layers``)
 D28   ``steps``, ``batch``, learning rates, ``lr_min``, ``warmup_frac``, ``grad_clip``
 D30   ``PredictorConfig.emit`` = "last" (emit the last 8 frames of each decoded 48-window)
 D31   ``scorer_pe`` ("sinusoidal" | "learned")
+D32   ``suppression_radius`` (not in the paper; 0 = Algorithm 1 and top-k exactly as published): each
+      soft and hard keyframe pick also suppresses its r neighbours on each side, so top-k of a
+      temporally smooth score cannot pick adjacent frames
 ====  ============================================================================================
 
 Decisions that concern other datasets (D19 REACT emotion head, D20/D21 L2L protocol and metric
@@ -102,6 +105,7 @@ class TokenizerConfig:
     vq_codebook_weight: float = 1.0  # D9
     vq_commit_weight: float = 1.0  # D9
     topk_eps: float = 1e-10
+    suppression_radius: int = 0  # D32: frames suppressed on each side of a keyframe pick (0 = as published)
     gumbel_samples: int = 4  # D7: S
     recon_on: str = "all"  # D7
     kf_loss_weight: float = 1.0  # D3
@@ -131,6 +135,8 @@ class TokenizerConfig:
             raise ConfigError(f"keyframes must be in 1..window ({self.window}), got {self.keyframes}")
         if self.width % self.heads:
             raise ConfigError(f"width {self.width} is not divisible by heads {self.heads}")
+        if self.suppression_radius < 0:
+            raise ConfigError(f"suppression_radius must be >= 0, got {self.suppression_radius}")
         if any(level < 2 for level in self.fsq_levels):
             raise ConfigError(f"FSQ levels must be >= 2, got {self.fsq_levels}")
 

@@ -118,9 +118,12 @@ class SFMSTokenizer(nn.Module):
         return None
 
     def select(self, m: torch.Tensor) -> torch.Tensor:
-        """Deterministic keyframe mask (B, T): top-k of the scores (ties → lower index)."""
+        """Deterministic keyframe mask (B, T): top-k of the scores (ties → lower index), with
+        non-maximum suppression when ``suppression_radius`` > 0."""
         fixed = self.fixed_mask(m.shape[0], m.device)
-        return fixed if fixed is not None else hard_topk(self.scorer(m), self.cfg.keyframes)
+        if fixed is not None:
+            return fixed
+        return hard_topk(self.scorer(m), self.cfg.keyframes, self.cfg.suppression_radius)
 
     # --- public API -------------------------------------------------------------------------------
     def _check(self, m: torch.Tensor) -> None:
@@ -163,7 +166,7 @@ class SFMSTokenizer(nn.Module):
             samples = cfg.gumbel_samples
             logits = m.new_zeros(b, t) if warmup else self.scorer(m)
             r, hard, _ = gumbel_soft_topk(logits.repeat_interleave(samples, 0), k, float(self.tau),
-                                          generator=generator, eps=cfg.topk_eps)
+                                          generator=generator, eps=cfg.topk_eps, radius=cfg.suppression_radius)
         else:
             samples, r, hard = 1, fixed, fixed
         mm = m.repeat_interleave(samples, 0)
@@ -179,7 +182,7 @@ class SFMSTokenizer(nn.Module):
                   "mask": m.new_zeros(()),
                   "dense": m.new_zeros(())}
         if logits is not None and not warmup and cfg.mask_loss_weight > 0:
-            p = relaxed_topk(logits, k, float(self.tau), cfg.topk_eps).clamp(0.0, 1.0)
+            p = relaxed_topk(logits, k, float(self.tau), cfg.topk_eps, cfg.suppression_radius).clamp(0.0, 1.0)
             losses["mask"] = (p - hard[rows]).abs().mean()
         if dense_aux > 0:
             full = dense_mask(b, t, m.device)
