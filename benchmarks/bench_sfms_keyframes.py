@@ -63,11 +63,20 @@ def window_bits(mode: str, k: int, n_codes: int, window: int) -> float:
     return bits + math.log2(math.comb(window, k)) if mode == "dynamic" else bits
 
 
-def run_arm(arm: tuple, common: dict, clips: int, test_windows: int, seed: int, threads: int) -> dict:
-    """Train and score one arm (mode, k, suppression radius); loads the corpus itself (one process per arm)."""
-    mode, k, radius = arm
+_CORPUS: tuple | None = None  # (train, test, mean, std), loaded once per worker process by _load_corpus_once
+
+
+def _load_corpus_once(clips: int, test_windows: int, threads: int) -> None:
+    """Worker-process initialiser: torch threads, and the corpus every arm of this worker trains on."""
+    global _CORPUS
     torch.set_num_threads(threads)
-    train, test, mean, std = load_corpus(clips, test_windows)
+    _CORPUS = load_corpus(clips, test_windows)
+
+
+def run_arm(arm: tuple[str, int, int], common: dict, seed: int) -> dict:
+    """Train and score one arm (mode, k, suppression radius) on the worker's corpus."""
+    mode, k, radius = arm
+    train, test, mean, std = _CORPUS
     cfg = tokenizer_preset("tiny", keyframe_mode=mode, keyframes=k, suppression_radius=radius, **common)
     t0 = time.perf_counter()
     model, history = fit_tokenizer(cfg, train, test[:64], motion_mean=mean, motion_std=std, seed=seed,
@@ -78,22 +87,27 @@ def run_arm(arm: tuple, common: dict, clips: int, test_windows: int, seed: int, 
             "seconds": time.perf_counter() - t0, "n_test": len(test), "config": to_dict(cfg)}
 
 
-def table_rows(rows: list[dict], k_values: list[int]) -> list[str]:
-    """One markdown row per k: MSE of every arm, ratios to the suppressed dynamic arm, bits per window."""
-    def arm(mode: str, k: int, radius: int | None = None) -> dict:
-        return next(r for r in rows if r["mode"] == mode and r["k"] == k and (radius is None or r["radius"] == radius))
-
-    dense = arm("dense", 48)
+def table_rows(rows: dict[tuple[str, int, int], dict], suppressed: list[tuple[int, int]]) -> list[str]:
+    """One markdown row per (k, radius of the suppressed arm): MSE of every arm, ratios to the suppressed
+    dynamic arm, bits per window. ``rows`` are keyed by arm (mode, k, radius)."""
+    dense = rows["dense", 48, 0]
     out = []
-    for k in k_values:
-        plain = arm("dynamic", k, 0)
-        sup = next(r for r in rows if r["mode"] == "dynamic" and r["k"] == k and r["radius"] > 0)
-        sta = arm("static", k)
-        out.append(f"| {k} | {plain['mse_z']:.4f} | {sup['radius']} | {sup['mse_z']:.4f} | {sta['mse_z']:.4f} | "
+    for k, radius in suppressed:
+        plain, sup, sta = rows["dynamic", k, 0], rows["dynamic", k, radius], rows["static", k, 0]
+        out.append(f"| {k} | {plain['mse_z']:.4f} | {radius} | {sup['mse_z']:.4f} | {sta['mse_z']:.4f} | "
                    f"{sta['mse_z'] / sup['mse_z']:.3f} | {plain['mse_z'] / sup['mse_z']:.3f} | {dense['mse_z']:.4f} | "
                    f"{dense['mse_z'] / sup['mse_z']:.3f} | {sup['mse_raw']:.5f} | {sta['mse_raw']:.5f} | "
                    f"{dense['mse_raw']:.5f} | {sup['bits']:.0f} / {sta['bits']:.0f} / {dense['bits']:.0f} |")
     return out
+
+
+def parse_radius(value: str) -> str | int:
+    """--radius: 'auto' or a whole number > 0."""
+    if value == "auto":
+        return value
+    if not value.isdigit() or int(value) < 1:
+        raise click.BadParameter(f"must be 'auto' or a whole number > 0, got {value!r}", param_hint="--radius")
+    return int(value)
 
 
 @click.command()
@@ -102,7 +116,7 @@ def table_rows(rows: list[dict], k_values: list[int]) -> list[str]:
 @click.option("--batch", type=int, default=32, show_default=True, help="Windows per step of every arm.")
 @click.option("--lr", type=float, default=2e-3, show_default=True,
               help="Peak learning rate of the main optimiser of every arm (the scorer's is half).")
-@click.option("--samples", type=int, default=2, show_default=True,
+@click.option("--samples", type=click.IntRange(min=1), default=2, show_default=True,
               help="Gumbel samples S per window of the dynamic arms (the tiny preset's; the spec's full size "
                    "uses 4, D7). Each sample is a full reconstruction, so S multiplies a dynamic arm's cost.")
 @click.option("--radius", default="auto", show_default=True,
@@ -113,31 +127,32 @@ def table_rows(rows: list[dict], k_values: list[int]) -> list[str]:
 @click.option("--test-windows", type=int, default=1024, show_default=True, help="Test windows scored.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of every arm.")
 @click.option("--threads", type=int, default=1, show_default=True, help="torch CPU threads per arm.")
-@click.option("--jobs", type=int, default=1, show_default=True, help="Arms trained in parallel processes.")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Arms trained in parallel processes.")
 @click.option("--out", type=click.Path(path_type=Path), default=RESULT, show_default=True,
               help="Markdown table to write.")
 def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, seed, threads, jobs, out) -> None:
     """Train and score every arm, print the table, write it as markdown."""
     k_values = [int(k) for k in ks.split(",")]
-    if radius != "auto" and int(radius) < 1:
-        raise click.BadParameter("must be 'auto' or a number > 0", param_hint="--radius")
+    r_choice = parse_radius(radius)
+    fsq = tuple(int(v) for v in levels.split(","))
     common = dict(steps=steps, batch=batch, lr_main=lr, lr_scorer=lr / 2, gumbel_samples=samples,
-                  fsq_levels=tuple(int(v) for v in levels.split(",")), val_every=max(steps // 4, 1))
+                  fsq_levels=fsq, val_every=max(steps // 4, 1))
+    suppressed = [(k, auto_radius(48, k) if r_choice == "auto" else r_choice) for k in k_values]
     arms = [("dense", 48, 0)]
-    for k in k_values:
-        r = auto_radius(48, k) if radius == "auto" else int(radius)
+    for k, r in suppressed:
         arms += [("static", k, 0), ("dynamic", k, 0), ("dynamic", k, r)]
     t0 = time.perf_counter()
-    with ProcessPoolExecutor(max_workers=jobs) as pool:
-        futures = [pool.submit(run_arm, arm, common, clips, test_windows, seed, threads) for arm in arms]
-        rows = []
-        for future in futures:
-            row = future.result()
-            rows.append(row)
+    with ProcessPoolExecutor(max_workers=jobs, initializer=_load_corpus_once,
+                             initargs=(clips, test_windows, threads)) as pool:
+        futures = [pool.submit(run_arm, arm, common, seed) for arm in arms]
+        rows = {}
+        for arm, future in zip(arms, futures):
+            row = rows[arm] = future.result()
             click.echo(f"{row['mode']:8s} k={row['k']:2d} r={row['radius']}  MSE z {row['mse_z']:.4f}  "
                        f"raw {row['mse_raw']:.5f}  ({row['seconds']:.0f} s)", err=True)
     wall = time.perf_counter() - t0
-    codes = int(np.prod([int(v) for v in levels.split(",")]))
+    codes = math.prod(fsq)
     lines = [
         "# SFMS keyframes: dynamic vs static vs dense (Tables III–IV on the embedded corpus)",
         "",
@@ -148,8 +163,8 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
         f"Tiny tokenizer (width 64, one layer per stack), FSQ levels [{levels}] ({codes} codes) for every arm, "
         f"{steps} steps × batch {batch}, peak lr {lr:g} (scorer {lr / 2:g}), S = {samples} Gumbel samples for the "
         f"dynamic arms, seed {seed}; trained on the first {clips} synthetic train dialogues (both participants), "
-        f"scored on {rows[0]['n_test']} non-overlapping 48-frame windows of the synthetic test split in eval mode "
-        "(deterministic keyframes; the weights with the lowest validation MSE are kept). MSE is the mean over "
+        f"scored on {rows[arms[0]]['n_test']} non-overlapping 48-frame windows of the synthetic test split in eval "
+        "mode (deterministic keyframes; the weights with the lowest validation MSE are kept). MSE is the mean over "
         "frames and the 56 dims, in z-space (train mean/std; the paper's tables do not state their space, D22) "
         "and in raw FLAME units. *Dynamic r = 0* is Algorithm 1 and top-k as published; *dynamic r* adds "
         "neighbour suppression of radius r (config `suppression_radius`, D32). Ratios are arm MSE / dynamic-r "
@@ -160,9 +175,10 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
         "| dynamic r = 0 / dynamic r | dense MSE (z) (k = 48) | dense / dynamic r | dynamic r raw | static raw "
         "| dense raw | bits: dynamic / static / dense |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-        *table_rows(rows, k_values),
+        *table_rows(rows, suppressed),
         "",
-        f"Wall time: {wall:.0f} s for {len(rows)} arms ({sum(r['seconds'] for r in rows):.0f} s of training) on "
+        f"Wall time: {wall:.0f} s for {len(rows)} arms "
+        f"({sum(r['seconds'] for r in rows.values()):.0f} s of training) on "
         f"{platform.machine()} ({jobs} jobs × {threads} torch threads, {os.cpu_count()} CPUs visible, shared "
         "machine).",
         "",

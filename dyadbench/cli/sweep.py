@@ -2,9 +2,9 @@
 
 Each run writes ``OUT/<dataset>/<split>/n<context>/<model>.json``, or ``<model>@<variant>.json`` when a
 protocol setting differs from the default (e.g. ``timar@cfg2.json`` for ``--cfg-scale 2``; see
-:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. Runs whose file exists are skipped
-(unless --force), so adding a model's rows never re-runs the others; ``dyadbench leaderboard OUT``
-then rebuilds the tables from every file.
+:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. Runs
+whose file exists are skipped (unless --force), so adding a model's rows never re-runs the others;
+``dyadbench leaderboard OUT`` then rebuilds the tables from every file.
 """
 
 from __future__ import annotations
