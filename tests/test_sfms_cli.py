@@ -57,3 +57,11 @@ def test_overrides_parse_json_values_and_reject_bad_pairs():
 def test_unknown_field_or_choice_is_a_config_error(tmp_path, tiny_data):
     res = CliRunner().invoke(cli.train_tokenizer, ["--set", "mask_sharing=channel", "--out", str(tmp_path / "x.pt")])
     assert isinstance(res.exception, ConfigError) and "mask_sharing" in str(res.exception)
+
+
+@pytest.mark.parametrize("pair, field", [("fsq_levels=8,5,5,5", "fsq_levels"), ("keyframes=6.5", "keyframes"),
+                                         ("suppression_radius=two", "suppression_radius")])
+def test_a_value_of_the_wrong_kind_is_a_config_error_naming_the_field(tmp_path, pair, field):
+    res = CliRunner().invoke(cli.train_tokenizer, ["--set", pair, "--out", str(tmp_path / "x.pt")])
+    assert isinstance(res.exception, ConfigError) and f"TokenizerConfig.{field} = " in str(res.exception)
+    assert not (tmp_path / "x.pt").exists()

@@ -49,6 +49,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from dyadbench.errors import ConfigError
+from dyadbench.training.config import check_field_types
 from dyadbench.training.config import config_from_dict as from_dict  # noqa: F401  (re-exported)
 from dyadbench.training.config import config_to_dict as to_dict  # noqa: F401  (re-exported)
 
@@ -73,6 +74,7 @@ PREDICTOR_CHOICES = {
 
 
 def _check_choices(cfg: Any, choices: dict[str, tuple[str, ...]]) -> None:
+    check_field_types(cfg)
     for name, allowed in choices.items():
         value = getattr(cfg, name)
         if value not in allowed:
