@@ -137,7 +137,7 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
     r_choice = parse_radius(radius)
     fsq = tuple(int(v) for v in levels.split(","))
     common = dict(steps=steps, batch=batch, lr_main=lr, lr_scorer=lr / 2, gumbel_samples=samples,
-                  fsq_levels=fsq, val_every=max(steps // 4, 1))
+                  fsq_levels=fsq, val_every=max(steps // 4, 1), normalisation="zscore")  # load_corpus z-scores
     suppressed = [(k, auto_radius(48, k) if r_choice == "auto" else r_choice) for k in k_values]
     arms = [("dense", 48, 0)]
     for k, r in suppressed:

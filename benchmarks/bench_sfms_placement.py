@@ -71,7 +71,7 @@ def main(ks, oracle_windows, test_windows, clips, tokenizer_path, seed, out) -> 
     """Measure the placement oracle and the tokenizer's use of positions; print and write the tables."""
     torch.set_num_threads(1)
     started = time.perf_counter()
-    _, test, _, _ = load_corpus(clips, test_windows)
+    _, test, mean, std = load_corpus(clips, test_windows)
     oracle_rows = []
     for k in (int(v) for v in ks.split(",")):
         static = static_mask(1, WINDOW, k)[0].numpy().nonzero()[0]
@@ -83,7 +83,8 @@ def main(ks, oracle_windows, test_windows, clips, tokenizer_path, seed, out) -> 
     tokenizer = load_tokenizer(path)
     if tokenizer.cfg.keyframe_mode != "dynamic":
         raise click.UsageError(f"{path}: keyframe_mode is {tokenizer.cfg.keyframe_mode!r}; the swap needs dynamic")
-    swap = _swap_positions(tokenizer, test, seed)
+    own_norm = tokenizer.normalise(torch.as_tensor(test * std + mean)).numpy()  # the tokenizer's own D22 scaling
+    swap = _swap_positions(tokenizer, own_norm, seed)
     cfg = tokenizer.cfg
     lines = [
         "# SFMS: does keyframe placement pay on the embedded corpus, and does the tokenizer use it?", "",
@@ -94,13 +95,14 @@ def main(ks, oracle_windows, test_windows, clips, tokenizer_path, seed, out) -> 
         "through k true frames, held at the ends; no quantiser, no network):", "",
         "| k | static i·⌊T/k⌋ MSE | optimal placement MSE | static / optimal |", "|---|---|---|---|", *oracle_rows,
         "", f"Tokenizer `{path.name}` (k = {cfg.keyframes}, FSQ levels "
-        f"{list(cfg.fsq_levels)}, {len(test)} windows), the same network with keyframe positions swapped:", "",
+        f"{list(cfg.fsq_levels)}, suppression radius {cfg.suppression_radius}, {len(test)} windows in its own "
+        f"normalisation, {cfg.normalisation}), the same network with keyframe positions swapped:", "",
         "| positions | MSE (z) |", "|---|---|",
-        f"| own (deterministic top-k of the scorer) | {swap['own']:.4f} |",
+        f"| own (deterministic selection of the scorer) | {swap['own']:.4f} |",
         f"| static i·⌊T/k⌋ | {swap['static']:.4f} |",
         f"| random k-subsets (seed {seed}) | {swap['random']:.4f} |",
         f"| reference: each window's exact mean frame, held (no keyframes) | "
-        f"{float(np.mean((test - test.mean(axis=1, keepdims=True)) ** 2)):.4f} |", "",
+        f"{float(np.mean((own_norm - own_norm.mean(axis=1, keepdims=True)) ** 2)):.4f} |", "",
         f"Its keyframes: {100 * swap['gap1']:.0f} % of the gaps between consecutive keyframes are 1 frame "
         f"(median gap {swap['gap_median']:.0f}).", "",
         f"Wall time {time.perf_counter() - started:.0f} s (1 torch thread).",

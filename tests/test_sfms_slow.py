@@ -17,9 +17,9 @@ def test_tiny_pipeline_learns_keyframes_and_beats_the_unigram_predictor():
     torch.set_num_threads(1)
     clips = make_clips("train", 24, duration_s=20.0)
     motion = clip_motions(clips)
-    mean, std = motion_stats(motion)
+    tok_cfg = tokenizer_preset("tiny", steps=300, val_every=100)
+    mean, std = motion_stats(motion, tok_cfg.normalisation)
     norm = [(a - mean) / std for a in motion]
-    tok_cfg = tokenizer_preset("tiny")
     tok, hist = fit_tokenizer(tok_cfg, norm[:40], eval_windows(norm[40:], 48), motion_mean=mean,
                               motion_std=std, seed=0, progress=False)
     first = np.mean([s["motion"] for s in hist["steps"][:10]])

@@ -57,7 +57,7 @@ def test_checkpoint_round_trip_gives_identical_outputs(weights):
 def test_factory_loads_weights_and_records_config(weights):
     model = build_sfms(ModelOptions(weights=weights))
     assert model.info.name == "sfms" and model.info.weights_digest
-    assert model.info.config["tokenizer"]["keyframes"] == 6
+    assert model.info.config["tokenizer"]["keyframes"] == 10
     assert model.info.config["predictor"]["speaker_span"] == "concurrent"
 
 

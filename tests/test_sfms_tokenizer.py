@@ -6,6 +6,7 @@ import torch
 
 from dyadbench.errors import ConfigError
 from models.sfms.config import tokenizer_preset
+from models.sfms.data import motion_stats
 from models.sfms.tokenizer import SFMSTokenizer
 from models.sfms.train_tokenizer import fit_tokenizer, reconstruction_mse
 
@@ -82,7 +83,7 @@ def test_inpainter_never_reads_transition_frames():
 
 @pytest.mark.parametrize("mode, expected", [("static", [0, 8, 16, 24, 32, 40]), ("dense", list(range(48)))])
 def test_fixed_arms_use_their_masks(mode, expected):
-    model = SFMSTokenizer(micro(keyframe_mode=mode)).eval()
+    model = SFMSTokenizer(micro(keyframe_mode=mode, keyframes=6)).eval()
     _, mask, _ = model.encode(torch.as_tensor(smooth_windows(2)))
     assert np.flatnonzero(mask[1].numpy()).tolist() == expected
 
@@ -152,3 +153,14 @@ def test_ema_weights_are_what_is_kept():
                                  motion_std=np.ones(56), seed=0, progress=False)
         drift[decay] = float((model.out.weight.detach() - init["out.weight"]).abs().max())
     assert drift[0.999] < 0.1 * drift[0.0]  # the slow average barely moves from the initial weights
+
+
+def test_motion_stats_by_hand_zscore_and_within_sequence():
+    """Two 1-d sequences [0, 2] and [10, 12]: mean 6; all-frame std sqrt((36+16+16+36)/4) = sqrt(26);
+    pooled within-sequence std sqrt((1+1+1+1)/4) = 1."""
+    arrays = [np.array([[0.0], [2.0]]), np.array([[10.0], [12.0]])]
+    mean, std = motion_stats(arrays)
+    assert mean[0] == pytest.approx(6.0) and std[0] == pytest.approx(np.sqrt(26.0))
+    mean_w, std_w = motion_stats(arrays, "within-sequence")
+    assert mean_w[0] == pytest.approx(6.0) and std_w[0] == pytest.approx(1.0)
+    assert motion_stats([np.ones((5, 2))], "within-sequence")[1].tolist() == pytest.approx([1e-4, 1e-4])

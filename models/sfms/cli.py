@@ -130,7 +130,7 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
     try:
         train, val, describe = load_split_clips(dataset, root, clips, val_frac, seed)
         train_motion = clip_motions(train)
-        mean, std = motion_stats(train_motion)
+        mean, std = motion_stats(train_motion, cfg.normalisation)
         norm = [(a - mean) / std for a in train_motion]
         val_set = eval_windows([(a - mean) / std for a in clip_motions(val)], cfg.window, limit=val_windows)
         model, history = fit_tokenizer(cfg, norm, val_set, motion_mean=mean, motion_std=std,
@@ -157,7 +157,7 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
 
     \b
     Example (the shipped tiny model; one command line):
-      dyadbench train sfms --config tiny --clips 400 --steps 800 --tokenizer sfms-tok.pt
+      dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
           --out models/sfms/checkpoints/sfms-tiny.pt
     """
     torch.set_num_threads(threads)

@@ -27,7 +27,8 @@ D15   ``PredictorConfig.keyframe_loss`` ("soft_dtw" | "bce"), ``sdtw_gamma``, ``
 D16   ``PredictorConfig.class_weights`` = "group" (w₀ = 0.5/(1−ρ), w_kf = 0.5/ρ, ρ = k/T)
 D17   ``PredictorConfig.sampling`` ("multinomial" | "greedy"), ``temperature``, ``top_k``
 D18   ``PredictorConfig.keyframe_cap`` (None = off; k + 2 in the spec's option)
-D22   ``normalisation`` = "zscore" (train-split mean/std per dim; MSE reported in z-space and raw)
+D22   ``normalisation`` = "zscore" (train-split mean/std per dim; MSE reported in z-space and raw) or
+      "within-sequence" (train mean, pooled within-sequence std: head pose keeps its in-clip motion)
 D24   ``PredictorConfig.neutral_prob`` (0.3), ``pre_start_prob`` (0.05); neutral = zero vector
 D25   predictor layer counts (``speaker_layers`` … ``decoder_layers``)
 D28   ``steps``, ``batch``, learning rates, ``lr_min``, ``warmup_frac``, ``grad_clip``
@@ -60,7 +61,7 @@ TOKENIZER_CHOICES = {
     "mask_target": ("best_sample",),
     "recon_on": ("all", "best"),
     "scorer_pe": ("sinusoidal", "learned"),
-    "normalisation": ("zscore",),
+    "normalisation": ("zscore", "within-sequence"),
 }
 PREDICTOR_CHOICES = {
     "tokenise": ("window",),
@@ -218,10 +219,12 @@ class PredictorConfig:
 
 TOKENIZER_PRESETS: dict[str, TokenizerConfig] = {
     "paper": TokenizerConfig(),
+    # tiny: the shipped tokenizer; keyframes, suppression and normalisation as measured in the README
     "tiny": TokenizerConfig(width=64, heads=4, ffn=128, pe_dim=16, scorer_layers=1, keyframe_layers=1,
-                            transition_layers=1, decoder_layers=1, fsq_levels=(5, 3), vq_codes=15,
-                            keyframes=6, gumbel_samples=2, steps=300, batch=32, tau_min=0.5,
-                            lr_main=1e-3, lr_scorer=5e-4, val_every=100),
+                            transition_layers=1, decoder_layers=1, fsq_levels=(8, 6, 5), vq_codes=240,
+                            keyframes=10, suppression_radius=2, normalisation="within-sequence",
+                            gumbel_samples=2, steps=2000, batch=32, tau_min=0.5,
+                            lr_main=2e-3, lr_scorer=1e-3, val_every=500),
 }
 PREDICTOR_PRESETS: dict[str, PredictorConfig] = {
     "paper": PredictorConfig(),

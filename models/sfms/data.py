@@ -23,10 +23,21 @@ from models.sfms.config import PredictorConfig
 STD_FLOOR = 1e-4
 
 
-def motion_stats(arrays: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
-    """Per-dim mean and std (floored at 1e-4) over all frames of ``arrays``."""
+def motion_stats(arrays: list[np.ndarray], normalisation: str = "zscore") -> tuple[np.ndarray, np.ndarray]:
+    """Per-dim mean over all frames of ``arrays`` and a scale (floored at 1e-4), by ``normalisation`` (D22):
+
+    - "zscore": the std over all frames, σ_d = sqrt(mean_f (x_fd − μ_d)²);
+    - "within-sequence": the pooled within-sequence std, σ_d = sqrt(Σ_s Σ_f (x_sfd − μ_sd)² / Σ_s T_s),
+      so a dim that moves little inside a sequence but differs between sequences (head pose) is not
+      shrunk to near-constant in the normalised space.
+    """
     stacked = np.concatenate(arrays, axis=0).astype(np.float64)
-    return stacked.mean(0).astype(np.float32), np.maximum(stacked.std(0), STD_FLOOR).astype(np.float32)
+    if normalisation == "within-sequence":
+        sq = sum(((a.astype(np.float64) - a.mean(0)) ** 2).sum(0) for a in arrays)
+        std = np.sqrt(sq / len(stacked))
+    else:
+        std = stacked.std(0)
+    return stacked.mean(0).astype(np.float32), np.maximum(std, STD_FLOOR).astype(np.float32)
 
 
 def clip_motions(clips: Iterable[DyadicClip]) -> list[np.ndarray]:

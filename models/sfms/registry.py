@@ -12,7 +12,7 @@ from models.sfms.stream import SFMSStreamingModel
 
 SHIPPED_WEIGHTS = Path(__file__).parent / "checkpoints" / "sfms-tiny.pt"
 REPRODUCE = ("dyadbench train sfms-tokenizer --config tiny --out TOK.pt && dyadbench train sfms --config tiny "
-             "--clips 400 --steps 800 --tokenizer TOK.pt --out models/sfms/checkpoints/sfms-tiny.pt")
+             "--clips 400 --steps 4000 --tokenizer TOK.pt --out models/sfms/checkpoints/sfms-tiny.pt")
 
 
 def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
