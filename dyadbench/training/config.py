@@ -25,35 +25,35 @@ def config_from_dict(cls: type[T], data: dict) -> T:
     return cls(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
 
 
-def _kind(value: Any) -> str | None:
-    """The type family a config value must keep: 'bool', 'number', 'str', 'tuple'; None = unchecked."""
-    if isinstance(value, bool):
-        return "bool"
-    if isinstance(value, (int, float)):
-        return "number"
-    if isinstance(value, str):
-        return "str"
-    if isinstance(value, tuple):
-        return "tuple"
-    return None
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def _same_kind(default: Any, value: Any) -> bool:
+    """Whether ``value`` may stand for a field whose default is ``default``: bools stay bools, ints stay ints,
+    floats take any number, strings stay strings, tuples hold numbers; other defaults (None) are unchecked."""
+    if isinstance(default, bool):
+        return isinstance(value, bool)
+    if isinstance(default, int):
+        return isinstance(value, int) and not isinstance(value, bool)
+    if isinstance(default, float):
+        return _is_number(value)
+    if isinstance(default, str):
+        return isinstance(value, str)
+    if isinstance(default, tuple):
+        return isinstance(value, tuple) and all(_is_number(v) for v in value)
+    return True
 
 
 def check_field_types(cfg: Any) -> None:
-    """Refuse a field whose value is not of its default's kind (ints stay ints; a tuple holds numbers),
-    so ``--set fsq_levels=8,5`` is a clear error rather than a string compared with numbers deep inside."""
+    """Refuse a field whose value is not of its default's kind, so ``--set fsq_levels=8,5`` (a string) is a
+    clear error naming the field rather than a string compared with numbers deep inside."""
     for f in fields(cfg):
-        value, kind = getattr(cfg, f.name), _kind(f.default)
-        if kind is None:
+        value = getattr(cfg, f.name)
+        if _same_kind(f.default, value):
             continue
-        int_only = isinstance(f.default, int) and not isinstance(f.default, bool)
-        ok = {"bool": isinstance(value, bool),
-              "number": isinstance(value, (int, float)) and not isinstance(value, bool)
-              and (not int_only or isinstance(value, int)),
-              "str": isinstance(value, str),
-              "tuple": isinstance(value, tuple)
-              and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)}[kind]
-        if not ok:
-            example = f"[{','.join(map(str, f.default))}]" if kind == "tuple" else repr(f.default)
-            raise ConfigError(f"{type(cfg).__name__}.{f.name} = {value!r} is not of the kind of its default "
-                              f"{example} (tuples are JSON lists: --set {f.name}=[...])" if kind == "tuple" else
-                              f"{type(cfg).__name__}.{f.name} = {value!r} is not of the kind of its default {example}")
+        tuple_field = isinstance(f.default, tuple)
+        example = f"[{','.join(map(str, f.default))}]" if tuple_field else repr(f.default)
+        hint = f" (tuples are JSON lists: --set {f.name}=[...])" if tuple_field else ""
+        raise ConfigError(f"{type(cfg).__name__}.{f.name} = {value!r} is not of the kind of its default "
+                          f"{example}{hint}")
