@@ -99,9 +99,7 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
                 key = _ablation_key(variant, selection, seed)
                 out = work / f"tiny-{key}.pt"
                 if not (reuse and out.is_file()):
-                    train_generator.main(["--config", f"tiny-{variant}", "--seed", str(seed), "--selection", selection,
-                                          "--threads", "1", "--style-encoder", str(paths["style64"]),
-                                          "--out", str(out)], standalone_mode=False)
+                    train_ablation_arm(variant, selection, seed, paths["style64"], out)
                 paths[key] = out
     root = _large_train_root(work)
     for lam in LARGE_LAMBDAS:
@@ -149,6 +147,13 @@ def _paired(without: list[dict], with_velocity: list[dict]) -> tuple[float, floa
     """Paired per-seed FixRatio differences (with − without): mean, standard error, seeds that decreased."""
     diff = np.array([b["fix_ratio"] - a["fix_ratio"] for a, b in zip(without, with_velocity)])
     return float(diff.mean()), float(diff.std(ddof=1) / math.sqrt(len(diff))), int((diff < 0).sum())
+
+
+def train_ablation_arm(variant: str, selection: str, seed: int, style_encoder: Path, out: Path) -> None:
+    """Train one generator of the velocity-loss ablation (tiny preset, one seed, one checkpoint selection)."""
+    train_generator.main(["--config", f"tiny-{variant}", "--seed", str(seed), "--selection", selection,
+                          "--threads", "1", "--style-encoder", str(style_encoder), "--out", str(out)],
+                         standalone_mode=False)
 
 
 def _ablation_key(variant: str, selection: str, seed: int) -> str:

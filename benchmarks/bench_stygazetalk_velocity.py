@@ -24,33 +24,27 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_stygazetalk_variants import (  # noqa: E402
-    ABLATION, ABLATION_LABELS, DATASET, _ablation_cells, _ablation_key, _arrays, _direction, _paired, _stream)
+    ABLATION, ABLATION_LABELS, DATASET, _ablation_cells, _ablation_key, _arrays, _direction, _paired, _stream,
+    train_ablation_arm)
 from dyadbench import atomic  # noqa: E402
 from dyadbench.protocol.config import ProtocolConfig  # noqa: E402
 from dyadbench.protocol.interface import ModelOptions  # noqa: E402
 from dyadbench.registry import DATASETS  # noqa: E402
 from dyadbench.scoring.gaze import score_arrays  # noqa: E402
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER  # noqa: E402
-from models.stygazetalk.cli import train_generator  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "stygazetalk_velocity.md"
 SELECTIONS = ("val-loss", "last")
 
 
-def _train_one(variant: str, selection: str, seed: int, out: Path) -> None:
-    train_generator.main(["--config", f"tiny-{variant}", "--seed", str(seed), "--selection", selection,
-                          "--threads", "1", "--style-encoder", str(SHIPPED_STYLE_ENCODER), "--out", str(out)],
-                         standalone_mode=False)
-
-
 def _checkpoints(work: Path, seeds: list[int], reuse: bool, jobs: int) -> dict[str, Path]:
     """Checkpoint of every (variant, selection, seed), trained in ``jobs`` processes unless --reuse finds it."""
-    paths = {_ablation_key(v, s, seed): work / f"tiny-{_ablation_key(v, s, seed)}.pt"
-             for v in ABLATION for s in SELECTIONS for seed in seeds}
-    todo = [(v, s, seed, paths[_ablation_key(v, s, seed)]) for v in ABLATION for s in SELECTIONS for seed in seeds
-            if not (reuse and paths[_ablation_key(v, s, seed)].is_file())]
+    arms = [(v, s, seed) for v in ABLATION for s in SELECTIONS for seed in seeds]
+    paths = {_ablation_key(*arm): work / f"tiny-{_ablation_key(*arm)}.pt" for arm in arms}
+    todo = [arm for arm in arms if not (reuse and paths[_ablation_key(*arm)].is_file())]
     with ProcessPoolExecutor(jobs) as pool:
-        for future in [pool.submit(_train_one, *task) for task in todo]:
+        for future in [pool.submit(train_ablation_arm, *arm, SHIPPED_STYLE_ENCODER, paths[_ablation_key(*arm)])
+                       for arm in todo]:
             future.result()
     return paths
 
