@@ -157,7 +157,7 @@ def train_ablation_arm(variant: str, selection: str, seed: int, style_encoder: P
 
 
 def _ablation_key(variant: str, selection: str, seed: int) -> str:
-    return f"{variant}-seed{seed}" if selection == "val-loss" else f"{variant}-last-seed{seed}"
+    return f"{variant}-seed{seed}" if selection == "val-loss" else f"{variant}-{selection}-seed{seed}"
 
 
 def _stream(name: str, options: ModelOptions, clips, config: ProtocolConfig) -> list[ScoreItem]:

@@ -1,12 +1,13 @@
-"""StyGazeTalk velocity-loss ablation (SE-64 vs SE-64-VEL) over ten seeds, under both checkpoint selections.
+"""StyGazeTalk velocity-loss ablation (SE-64 vs SE-64-VEL) over ten seeds, under three checkpoint selections.
 
 The paper's ablation direction is that adding the velocity loss moves FixRatio toward the ground truth.
 `bench_stygazetalk_variants.py` runs it over three seeds; this script repeats it over seeds 0-9 on the 16
-embedded train sessions, with the spec's selection (lowest validation L_gen, D27) and with the final weights,
-and reports paired per-seed differences (with − without). Every generator uses the shipped SE-64 style
+embedded train sessions, with the spec's selection (lowest validation L_gen, D27), with the lowest validation
+L_mse alone (one criterion for both arms, so the selection does not change with the loss being ablated) and
+with the final weights, and reports paired per-seed differences (with − without). Every generator uses the shipped SE-64 style
 encoder (the CE evaluator), mean decoding, and is streamed over the synthetic test sessions (n = 7).
 
-    python benchmarks/bench_stygazetalk_velocity.py --jobs 2     # ~40 trainings of ~35 s each
+    python benchmarks/bench_stygazetalk_velocity.py --jobs 2     # ~60 trainings of ~35 s each
     python benchmarks/bench_stygazetalk_velocity.py --reuse      # re-score checkpoints already in --work
 Writes benchmarks/results/stygazetalk_velocity.md.
 """
@@ -34,7 +35,7 @@ from dyadbench.scoring.gaze import score_arrays  # noqa: E402
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "stygazetalk_velocity.md"
-SELECTIONS = ("val-loss", "last")
+SELECTIONS = ("val-loss", "val-mse", "last")
 
 
 def _checkpoints(work: Path, seeds: list[int], reuse: bool, jobs: int) -> dict[str, Path]:

@@ -39,9 +39,11 @@ def test_trainers_and_eval_with_style_transfer(root, tmp_path):
 
     gen = tmp_path / "gen.pt"
     out = _invoke(["train", "stygazetalk", "--config", "tiny-se64", "--style-encoder", str(se), "--dataset", "gaze",
-                   "--data", str(root), "--steps", "2", "--batch", "4", "--threads", "1", "--out", str(gen)])
+                   "--data", str(root), "--steps", "2", "--batch", "4", "--rollout-prob", "0.5", "--threads", "1",
+                   "--out", str(gen)])
     assert "val loss" in out
     system, gmeta = load_system(gen)
+    assert system.cfg.rollout_prob == 0.5  # the D9 override is recorded in the checkpoint
     assert gmeta["steps"] == 2 and len(gmeta["style_encoder_digest"]) == 64
     assert np.array_equal(system.motion_norm.mean.numpy(), style.motion_norm.mean.numpy())
     assert system.residual_pool.abs().sum() > 0

@@ -10,6 +10,7 @@ from typing import Callable
 import click
 
 from dyadbench.errors import ConfigError
+from models.stygazetalk.config import CHECKPOINT_SELECTIONS
 
 THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1; results can differ in the last bits with more)."
 DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
@@ -98,15 +99,20 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--batch", type=click.IntRange(min=1), default=None, help="Override the preset's batch size.")
 @click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
               help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
+@click.option("--rollout-prob", type=click.FloatRange(0.0, 1.0), default=None,
+              help="Override the share of training steps whose last N-1 inputs are the model's own outputs "
+                   "(scheduled sampling, D9; 0 = teacher forcing only).")
 @click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
-@click.option("--selection", type=click.Choice(["val-loss", "last"]), default=None,
-              help="Override which weights are kept: lowest validation loss (preset) or the final step.")
+@click.option("--selection", type=click.Choice(list(CHECKPOINT_SELECTIONS)), default=None,
+              help="Override which weights are kept: lowest validation L_gen (preset, D27), lowest validation "
+                   "MSE alone (val-mse: one criterion whatever --lam), or the final step.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Checkpoint file to write (atomically).")
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
-                    val_split: str, steps: int | None, batch: int | None, lam: float | None, seed: int | None,
-                    selection: str | None, threads: int, out: Path) -> None:
+                    val_split: str, steps: int | None, batch: int | None, lam: float | None,
+                    rollout_prob: float | None, seed: int | None, selection: str | None, threads: int,
+                    out: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The selected weights are those with the lowest teacher-forced validation loss.
@@ -120,8 +126,8 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.train_generator import train_generator as fit
 
     torch.set_num_threads(threads)
-    cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam, seed=seed,
-                     checkpoint_selection=selection).validate()
+    cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam,
+                     rollout_prob=rollout_prob, seed=seed, checkpoint_selection=selection).validate()
     style, style_digest = None, None
     if cfg.style:
         if style_path is None:
@@ -141,7 +147,8 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
             "train_windows": log.train_windows,
             "curve": log.curve()}
     path = save_system(out, system, meta)
-    kept = f"best step {log.best_step}" if cfg.checkpoint_selection == "val-loss" else \
+    kept = f"best step {log.best_step}" if cfg.checkpoint_selection != "last" else \
         f"final weights kept; best step was {log.best_step}"
-    click.echo(f"generator {cfg.name} ({cfg.variant}): val loss {log.step0_val_loss:.4f} -> {log.best_val:.4f} "
+    tracked = "MSE" if cfg.checkpoint_selection == "val-mse" else "loss"
+    click.echo(f"generator {cfg.name} ({cfg.variant}): val {tracked} {log.step0_val_loss:.4f} -> {log.best_val:.4f} "
                f"({kept}, {log.seconds:.0f} s); wrote {path}")

@@ -16,6 +16,7 @@ from dyadbench.errors import ConfigError
 from dyadbench.training.config import config_from_dict, config_to_dict  # noqa: F401  (config_from_dict re-exported)
 
 MOTION_DIM = 7  # D1: [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch, R_yaw], degrees
+CHECKPOINT_SELECTIONS = ("val-loss", "val-mse", "last")  # D27 and the two alternatives
 CHANNELS = ("head_pitch", "head_yaw", "head_roll", "left_pitch", "left_yaw", "right_pitch", "right_yaw")
 
 
@@ -134,7 +135,9 @@ class GeneratorConfig:
     grad_clip: float = 1.0
     weight_decay: float = 0.0
     val_every: int = 500
-    checkpoint_selection: str = "val-loss"  # D27: lowest validation L_gen; "last": the final weights
+    # D27: lowest validation L_gen; "val-mse": lowest validation L_mse (the same criterion whatever λ);
+    # "last": the final weights
+    checkpoint_selection: str = "val-loss"
     # data and evaluation (D3, D4, D28, D30)
     normalisation: str = "zscore-train"  # D4
     angle_limit_deg: float = 40.0  # D3: frames with any |angle| above are dropped by the adapter
@@ -178,8 +181,8 @@ class GeneratorConfig:
             raise ConfigError(f"{self.name}: seed_window must be gt or mpgw-sim")
         _require_fixed(self, {"alignment": "one-frame-lag", "motion_encoder": "linear", "window_local_audio": True,
                               "normalisation": "zscore-train", "loss_reduction": "mean"})
-        if self.checkpoint_selection not in ("val-loss", "last"):
-            raise ConfigError(f"{self.name}: checkpoint_selection must be val-loss or last")
+        if self.checkpoint_selection not in CHECKPOINT_SELECTIONS:
+            raise ConfigError(f"{self.name}: checkpoint_selection must be one of {', '.join(CHECKPOINT_SELECTIONS)}")
         if self.lr_schedule not in ("cosine", "constant"):
             raise ConfigError(f"{self.name}: lr_schedule must be cosine or constant")
         if sorted(self.concat_order) != ["audio", "motion", "style"]:

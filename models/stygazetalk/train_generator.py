@@ -3,7 +3,8 @@
 One step (own notation of the spec): a window of M+1 ground-truth frames x_{u−1..u+M−1}; inputs
 x_{u−1..u+M−2}, targets x_{u..u+M−1}; s = SE(inputs) (D7) or SE(the M frames before, "preceding");
 loss λ·MSE + (1−λ)·velocity-MSE with x_{u−1} as the predecessor of the first output (D20).
-Adam with cosine decay, gradient clipping; the weights with the lowest validation loss are kept.
+Adam with cosine decay, gradient clipping; the weights with the lowest validation L_gen are kept (D27), or
+those with the lowest validation L_mse ("val-mse": one criterion for every λ), or the final ones.
 """
 
 from __future__ import annotations
@@ -96,12 +97,14 @@ def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size:
 
 
 def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
+    """Teacher-forced validation value of the selection criterion: L_gen, or L_mse alone for "val-mse"."""
+    term = 1 if system.cfg.checkpoint_selection == "val-mse" else 0
     system.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for lo in range(0, len(bank), batch):
             motion = torch.from_numpy(bank.motion[lo:lo + batch])
-            loss = window_loss(system, motion, torch.from_numpy(bank.audio[lo:lo + batch]))[0]
+            loss = window_loss(system, motion, torch.from_numpy(bank.audio[lo:lo + batch]))[term]
             total += loss.item() * motion.shape[0]
             n += motion.shape[0]
     return total / n
@@ -136,7 +139,7 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
         sched.step()
         if step % cfg.val_every == 0 or step == cfg.steps:
             log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch), system)
-    if cfg.checkpoint_selection == "val-loss":
+    if cfg.checkpoint_selection != "last":
         log.restore_best(system)
     system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
     system.eval()
