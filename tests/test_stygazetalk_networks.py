@@ -12,7 +12,9 @@ import torch
 from models.stygazetalk.config import GENERATORS, STYLE_ENCODERS, get_generator_config, get_style_config
 from models.stygazetalk.generator import MotionGenerator
 from models.stygazetalk.style_encoder import StyleEncoder, nt_xent
-from models.stygazetalk.train_generator import generator_loss
+from models.stygazetalk.data import Segment
+from models.stygazetalk.system import StyGazeTalkSystem
+from models.stygazetalk.train_generator import _val_loss, banks_for, generator_loss, train_generator, window_loss
 
 torch.set_num_threads(1)
 M, N, F_AUDIO = 50, 25, 40
@@ -295,3 +297,19 @@ def test_centred_velocity_input_ignores_a_constant_pose_offset():
         assert torch.allclose(se(x), se(x + torch.randn(3, 1, 7) * 5), atol=1e-5)
         plain = StyleEncoder(replace(cfg, input_features="angles")).eval()
         assert not torch.allclose(plain(x), plain(x + 5.0), atol=1e-3)
+
+
+def test_val_mse_selection_keeps_the_weights_with_the_lowest_validation_mse():
+    cfg = replace(get_generator_config("tiny-base"), lam=0.5, steps=4, val_every=1, batch=4,
+                  checkpoint_selection="val-mse")
+    rng = np.random.default_rng(0)
+    segs = [Segment(f"s{i}", "spk", 0, rng.normal(size=(200, 7)).astype(np.float32),
+                    0.1 * rng.normal(size=200 * 640).astype(np.float32)) for i in range(2)]
+    system = StyGazeTalkSystem(cfg, None)
+    log = train_generator(system, segs[:1], segs[1:], progress=False)
+    _, val_bank = banks_for(system, segs[:1], segs[1:])
+    kept = _val_loss(system, val_bank, cfg.batch)
+    assert log.best_val == min(log.val_loss) and kept == pytest.approx(log.best_val, rel=1e-6)
+    with torch.no_grad():  # the tracked criterion is L_mse alone, not L_gen = 0.5 L_mse + 0.5 L_vel
+        loss, mse, _ = window_loss(system, torch.from_numpy(val_bank.motion), torch.from_numpy(val_bank.audio))
+    assert kept == pytest.approx(mse.item(), rel=1e-5) and kept != pytest.approx(loss.item(), rel=1e-3)
