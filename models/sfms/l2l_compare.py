@@ -6,13 +6,16 @@ the baselines) with :func:`dyadbench.scoring.l2l.score_arrays` — ground truth 
 speaker = the partner's motion — and prints / writes one comparison table::
 
     python -m models.sfms.l2l_compare runs/sfms runs/mean-frame ... --out benchmarks/results/sfms_l2l.md
+
+``--frames listening`` scores only the frames where the agent is silent and its partner speaks (the
+clip's ``meta["speaking"]`` masks), i.e. the Learning2Listen task: a listener's head while the other person
+talks. Whole clips (the default) also hold the agent's own talking, which a listener model is not given.
 """
 
 from __future__ import annotations
 
 import math
 import shlex
-import sys
 from pathlib import Path
 
 import click
@@ -21,6 +24,7 @@ import torch
 
 from dyadbench import atomic
 from dyadbench.arrays import load_npy
+from dyadbench.datasets.base import DyadicClip
 from dyadbench.errors import InputError
 from dyadbench.protocol.runner import open_dataset_split
 from dyadbench.results import EvalResult, load_result
@@ -29,16 +33,33 @@ from dyadbench.scoring.report import ScoreItem
 from models.sfms.bundle import load_tokenizer
 from models.sfms.tokenizer import SFMSTokenizer
 
+FRAMES = ("all", "listening")
 HEADERS = {"fd_exp": "FD exp", "fd_pose": "FD rot", "pfd_exp": "P-FD exp", "pfd_pose": "P-FD rot"}
 COLUMNS = tuple(HEADERS)
 
 
-def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Path | None = None
-              ) -> list[ScoreItem]:
-    """ScoreItems of one eval run: prediction, the agent's ground truth and the partner's motion.
+def listening_frames(clip: DyadicClip, agent: str) -> np.ndarray:
+    """(T,) bool: frames where ``agent`` is silent and its partner speaks, from ``clip.meta["speaking"]``."""
+    partner = clip.partner_of(agent)
+    speaking = clip.meta.get("speaking") or {}
+    if partner is None or agent not in speaking or partner.name not in speaking:
+        raise InputError(clip.clip_id, "--frames listening needs per-participant speaking masks "
+                                       "(meta['speaking']) for both participants; this clip has none")
+    masks = [np.asarray(speaking[who], dtype=bool) for who in (agent, partner.name)]
+    if any(m.shape != (clip.num_frames,) for m in masks):
+        raise InputError(clip.clip_id, f"speaking masks must be ({clip.num_frames},) per participant, got "
+                                       f"{[m.shape for m in masks]}")
+    return ~masks[0] & masks[1]
+
+
+def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Path | None = None,
+              frames: str = "all") -> tuple[list[ScoreItem], list[np.ndarray]]:
+    """ScoreItems of one eval run (prediction, the agent's ground truth, the partner's motion; whole
+    sequences) and, per item, the (T,) bool mask of the frames to score (see :func:`restrict`).
 
     ``clips``: only the predictions of the first N clips (sorted ids), to compare runs on a common subset.
     ``data``: the dataset root the run was evaluated on (None: the embedded corpus / the adapter's default).
+    ``frames``: "all", or "listening" (:func:`listening_frames`).
     """
     pred_dir = Path(result.predictions) if result.predictions else run / "predictions"
     files = sorted(pred_dir.glob("*.npy"))
@@ -48,7 +69,7 @@ def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Pat
     if not files:
         raise InputError(pred_dir, "no predictions (run `dyadbench eval ... --out RUN` to keep them)")
     source = open_dataset_split(result.data.dataset, data, result.data.split)
-    clips, items = {}, []
+    clips, items, masks = {}, [], []
     for path in files:
         clip_id, _, agent = path.stem.rpartition("_")
         clip = clips.get(clip_id) or clips.setdefault(clip_id, source.load(clip_id))
@@ -59,7 +80,21 @@ def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Pat
         n = min(len(pred), clip.num_frames)
         items.append(ScoreItem(path.stem, pred[:n], clip.participant(agent).motion[:n], partner.motion[:n],
                                fps=clip.fps))
-    return items
+        masks.append(listening_frames(clip, agent)[:n] if frames == "listening" else np.ones(n, dtype=bool))
+    return items, masks
+
+
+def restrict(items: list[ScoreItem], masks: list[np.ndarray]) -> list[ScoreItem]:
+    """Each item cut to the frames its mask keeps (the mask is cut to the item's length); items with
+    fewer than 2 kept frames are left out (the suite needs T ≥ 2)."""
+    out = []
+    for item, mask in zip(items, masks):
+        keep = mask[:len(item.pred)]
+        if keep.sum() >= 2:
+            out.append(ScoreItem(item.stem, item.pred[keep], item.gt[keep], item.partner[keep], fps=item.fps))
+    if not out:
+        raise InputError(None, "no prediction has 2 or more frames to score under the chosen --frames")
+    return out
 
 
 @torch.no_grad()
@@ -92,13 +127,16 @@ def table(rows: list[dict]) -> str:
               help="Dataset root the runs were evaluated on (default: the embedded synthetic corpus).")
 @click.option("--clips", type=click.IntRange(min=1), default=None,
               help="Score only the first N clips (sorted ids) of every run: a common subset.")
+@click.option("--frames", type=click.Choice(FRAMES), default="all", show_default=True,
+              help="Frames scored: every frame, or only those where the agent is silent and its partner "
+                   "speaks (the Learning2Listen listener task; needs the clips' speaking masks).")
 @click.option("--tokenizer-bound", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="SFMS checkpoint: add a row scoring its tokenizer's reconstruction of the ground truth "
                    "(a perfect-predictor reference), on the first run's items.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Markdown file to write the table to (atomically).")
-def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, tokenizer_bound: Path | None,
-         out: Path | None) -> None:
+def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, frames: str,
+         tokenizer_bound: Path | None, out: Path | None) -> None:
     """Re-score RUNS (folders written by `dyadbench eval --out`) with the L2L-line suite."""
     rows = []
 
@@ -108,19 +146,22 @@ def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None
                      **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
         click.echo(f"{name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)
 
-    first_items = None
+    first = None
     for run in runs:
         result = load_result(run / "result.json")
-        items = run_items(result, run, clips, data)
-        first_items = first_items or items
-        add(result.model.name, result.protocol.context, items)
-    if tokenizer_bound is not None:
+        items, masks = run_items(result, run, clips, data, frames)
+        first = first or (items, masks)
+        add(result.model.name, result.protocol.context, restrict(items, masks))
+    if tokenizer_bound is not None:  # whole windows are reconstructed, then cut like every run
         add("sfms tokenizer reconstruction of the ground truth (perfect-predictor reference)", "–",
-            reconstruction_items(load_tokenizer(tokenizer_bound), first_items))
+            restrict(reconstruction_items(load_tokenizer(tokenizer_bound), first[0]), first[1]))
     text = table(rows)
     click.echo(text)
     if out is not None:
-        command = "python -m models.sfms.l2l_compare " + " ".join(shlex.quote(a) for a in sys.argv[1:])
+        given = [*map(str, runs), "--seed", str(seed), "--frames", frames]
+        for flag, value in (("--data", data), ("--clips", clips), ("--tokenizer-bound", tokenizer_bound)):
+            given += [flag, str(value)] if value is not None else []
+        command = "python -m models.sfms.l2l_compare " + " ".join(shlex.quote(a) for a in given + ["--out", str(out)])
         atomic.write_text(out, f"L2L-line suite (seed {seed}), scored by `{command}`\n\n{text}\n")
 
 
