@@ -89,3 +89,22 @@ def test_compare_command_writes_the_listening_table(mime_run, tmp_path):
     assert result.exit_code == 0, result.output
     text = out.read_text()
     assert "--frames listening" in text and "| mime | 2 | 4 |" in text
+
+
+def test_paired_table_is_the_mean_and_standard_error_of_per_sequence_differences():
+    def rows(values, clips=("a", "b", "c")):
+        return [{"clip": c, **{k: v for k in l2l_compare.COLUMNS}} for c, v in zip(clips, values)]
+
+    text = l2l_compare.paired_table([("first", rows([1.0, 2.0, 3.0])), ("other", rows([2.0, 2.0, 5.0]))])
+    # d = (-1, 0, -2): mean -1, std (ddof 1) 1, s.e. 1/sqrt(3) = 0.577; 2 of 3 lower
+    assert "| other | 3 | -1 ± 0.58 (2 lower) |" in text
+    with pytest.raises(InputError, match="shares 1 scored sequences"):
+        l2l_compare.paired_table([("first", rows([1.0, 2.0])), ("other", rows([1.0, 2.0], clips=("b", "z")))])
+
+
+def test_compare_command_pairs_runs_over_the_same_sequences(mime_run, tmp_path):
+    root, run = mime_run
+    result = CliRunner().invoke(l2l_compare.main, [str(run), str(run), "--data", str(root), "--paired"],
+                                catch_exceptions=False)
+    assert result.exit_code == 0, result.output
+    assert "| mime | 4 | +0 ± 0 (0 lower) |" in result.output  # a run against itself: no difference

@@ -120,6 +120,30 @@ def table(rows: list[dict]) -> str:
     return "\n".join(lines)
 
 
+def paired_table(runs: list[tuple[str, list[dict]]]) -> str:
+    """The first run against each other one, sequence by sequence (the sequences both scored).
+
+    Per column, d_i = first_i − other_i over the n common sequences; the cell is mean(d) ± s.e. with
+    s.e. = std(d, ddof=1)/√n (sequences taken as independent; the two directions of a dialogue share it),
+    then how many of the n sequences the first run scores lower. Negative means the first run is better.
+    """
+    name0, rows0 = runs[0]
+    by_clip0 = {r["clip"]: r for r in rows0}
+    lines = [f"| {name0} − model | sequences | " + " | ".join(HEADERS.values()) + " |",
+             "|" + "---|" * (2 + len(COLUMNS))]
+    for name, rows in runs[1:]:
+        common = [r for r in rows if r["clip"] in by_clip0]
+        if len(common) < 2:
+            raise InputError(name, f"shares {len(common)} scored sequences with {name0}; a paired comparison "
+                                   "needs 2 or more (compare runs over the same clips)")
+        cells = []
+        for c in COLUMNS:
+            d = np.array([by_clip0[r["clip"]][c] - r[c] for r in common])
+            cells.append(f"{d.mean():+.4g} ± {d.std(ddof=1) / math.sqrt(len(d)):.2g} ({int((d < 0).sum())} lower)")
+        lines.append(f"| {name} | {len(common)} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 @click.command()
 @click.argument("runs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False, path_type=Path))
 @click.option("--seed", default=0, show_default=True, help="Seed of the suite's randomised parts (k-means).")
@@ -133,15 +157,19 @@ def table(rows: list[dict]) -> str:
 @click.option("--tokenizer-bound", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
               help="SFMS checkpoint: add a row scoring its tokenizer's reconstruction of the ground truth "
                    "(a perfect-predictor reference), on the first run's items.")
+@click.option("--paired", is_flag=True,
+              help="Also compare the first run with each other one sequence by sequence: mean ± standard "
+                   "error of the per-sequence differences, and how many sequences the first scores lower.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Markdown file to write the table to (atomically).")
+              help="Markdown file to write the table(s) to (atomically).")
 def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None, frames: str,
-         tokenizer_bound: Path | None, out: Path | None) -> None:
+         tokenizer_bound: Path | None, paired: bool, out: Path | None) -> None:
     """Re-score RUNS (folders written by `dyadbench eval --out`) with the L2L-line suite."""
-    rows = []
+    rows, per_sequence = [], []
 
     def add(name: str, context: object, items: list[ScoreItem]) -> None:
         report = l2l.score_arrays(items, seed=seed)
+        per_sequence.append((name, report.per_item))
         rows.append({"model": name, "context": context, "items": report.n_scored,
                      **{c: float(report.metrics.get(c, np.nan)) for c in COLUMNS}})
         click.echo(f"{name}: " + ", ".join(f"{c} {rows[-1][c]:.4f}" for c in COLUMNS), err=True)
@@ -156,9 +184,11 @@ def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None
         add("sfms tokenizer reconstruction of the ground truth (perfect-predictor reference)", "–",
             restrict(reconstruction_items(load_tokenizer(tokenizer_bound), first[0]), first[1]))
     text = table(rows)
+    if paired:
+        text += "\n\n" + paired_table(per_sequence)
     click.echo(text)
     if out is not None:
-        given = [*map(str, runs), "--seed", str(seed), "--frames", frames]
+        given = [*map(str, runs), "--seed", str(seed), "--frames", frames] + (["--paired"] if paired else [])
         for flag, value in (("--data", data), ("--clips", clips), ("--tokenizer-bound", tokenizer_bound)):
             given += [flag, str(value)] if value is not None else []
         command = "python -m models.sfms.l2l_compare " + " ".join(shlex.quote(a) for a in given + ["--out", str(out)])
