@@ -4,8 +4,9 @@ The paper's ablation direction is that adding the velocity loss moves FixRatio t
 `bench_stygazetalk_variants.py` runs it over three seeds; this script repeats it over seeds 0-9 on the 16
 embedded train sessions, with the spec's selection (lowest validation L_gen, D27), with the lowest validation
 L_mse alone (one criterion for both arms, so the selection does not change with the loss being ablated) and
-with the final weights, and reports paired per-seed differences (with − without). Every generator uses the shipped SE-64 style
-encoder (the CE evaluator), mean decoding, and is streamed over the synthetic test sessions (n = 7).
+with the final weights, and reports paired per-seed differences (with − without). Every generator uses the
+shipped SE-64 style encoder (the CE evaluator), mean decoding, and is streamed over the synthetic test
+sessions (n = 7).
 
     python benchmarks/bench_stygazetalk_velocity.py --jobs 2     # ~60 trainings of ~35 s each
     python benchmarks/bench_stygazetalk_velocity.py --reuse      # re-score checkpoints already in --work

@@ -115,7 +115,8 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
                     out: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
-    The selected weights are those with the lowest teacher-forced validation loss.
+    The kept weights are those with the lowest teacher-forced validation loss (the preset's selection),
+    or, with --selection, those with the lowest validation MSE alone or the final ones.
     """
     import torch
 
