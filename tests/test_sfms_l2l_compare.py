@@ -46,8 +46,8 @@ def test_restrict_cuts_every_array_to_the_mask_and_leaves_out_items_under_two_fr
     assert [i.stem for i in out] == ["x_speaker1"]
     for got, full in zip((out[0].pred, out[0].gt, out[0].partner), (a, a + 1, a + 2)):
         assert np.array_equal(got, full[[0, 2, 3]])
-    with pytest.raises(InputError, match="2 or more frames"):
-        restrict(items[1:], [mask * False])
+    with pytest.raises(InputError, match="runs/x.*2 or more frames"):
+        restrict(items[1:], [mask * False], "runs/x")
 
 
 @pytest.fixture(scope="module")

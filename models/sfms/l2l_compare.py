@@ -84,16 +84,16 @@ def run_items(result: EvalResult, run: Path, clips: int | None = None, data: Pat
     return items, masks
 
 
-def restrict(items: list[ScoreItem], masks: list[np.ndarray]) -> list[ScoreItem]:
+def restrict(items: list[ScoreItem], masks: list[np.ndarray], where: object = None) -> list[ScoreItem]:
     """Each item cut to the frames its mask keeps (the mask is cut to the item's length); items with
-    fewer than 2 kept frames are left out (the suite needs T ≥ 2)."""
+    fewer than 2 kept frames are left out (the suite needs T ≥ 2). ``where`` names the run in errors."""
     out = []
     for item, mask in zip(items, masks):
         keep = mask[:len(item.pred)]
         if keep.sum() >= 2:
             out.append(ScoreItem(item.stem, item.pred[keep], item.gt[keep], item.partner[keep], fps=item.fps))
     if not out:
-        raise InputError(None, "no prediction has 2 or more frames to score under the chosen --frames")
+        raise InputError(where, "no prediction has 2 or more frames to score under the chosen --frames")
     return out
 
 
@@ -179,7 +179,7 @@ def main(runs: tuple[Path, ...], seed: int, data: Path | None, clips: int | None
         result = load_result(run / "result.json")
         items, masks = run_items(result, run, clips, data, frames)
         first = first or (items, masks)
-        add(result.model.name, result.protocol.context, restrict(items, masks))
+        add(result.model.name, result.protocol.context, restrict(items, masks, run))
     if tokenizer_bound is not None:  # whole windows are reconstructed, then cut like every run
         add("sfms tokenizer reconstruction of the ground truth (perfect-predictor reference)", "–",
             restrict(reconstruction_items(load_tokenizer(tokenizer_bound), first[0]), first[1]))
