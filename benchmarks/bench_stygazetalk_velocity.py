@@ -8,7 +8,7 @@ with the final weights, and reports paired per-seed differences (with − withou
 shipped SE-64 style encoder (the CE evaluator), mean decoding, and is streamed over the synthetic test
 sessions (n = 7).
 
-    python benchmarks/bench_stygazetalk_velocity.py --jobs 2     # ~60 trainings of ~35 s each
+    python benchmarks/bench_stygazetalk_velocity.py --jobs 2     # ~50 trainings of ~35 s each
     python benchmarks/bench_stygazetalk_velocity.py --reuse      # re-score checkpoints already in --work
 Writes benchmarks/results/stygazetalk_velocity.md.
 """
@@ -34,16 +34,26 @@ from dyadbench.protocol.interface import ModelOptions  # noqa: E402
 from dyadbench.registry import DATASETS  # noqa: E402
 from dyadbench.scoring.gaze import score_arrays  # noqa: E402
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER  # noqa: E402
+from models.stygazetalk.config import get_generator_config  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "stygazetalk_velocity.md"
 SELECTIONS = ("val-loss", "val-mse", "last")
 
 
+def _trained_selection(variant: str, selection: str) -> str:
+    """The selection whose checkpoint serves (variant, selection): at λ = 1, L_gen is L_mse exactly, so
+    val-mse keeps the same weights as val-loss and is not trained twice."""
+    same = selection == "val-mse" and get_generator_config(f"tiny-{variant}").lam == 1.0
+    return "val-loss" if same else selection
+
+
 def _checkpoints(work: Path, seeds: list[int], reuse: bool, jobs: int) -> dict[str, Path]:
     """Checkpoint of every (variant, selection, seed), trained in ``jobs`` processes unless --reuse finds it."""
-    arms = [(v, s, seed) for v in ABLATION for s in SELECTIONS for seed in seeds]
-    paths = {_ablation_key(*arm): work / f"tiny-{_ablation_key(*arm)}.pt" for arm in arms}
-    todo = [arm for arm in arms if not (reuse and paths[_ablation_key(*arm)].is_file())]
+    arms = {_ablation_key(v, s, seed): (v, _trained_selection(v, s), seed)
+            for v in ABLATION for s in SELECTIONS for seed in seeds}
+    paths = {key: work / f"tiny-{_ablation_key(*arm)}.pt" for key, arm in arms.items()}
+    trained = {_ablation_key(*arm): arm for arm in arms.values()}  # each distinct checkpoint once
+    todo = [arm for key, arm in trained.items() if not (reuse and paths[key].is_file())]
     with ProcessPoolExecutor(jobs) as pool:
         for future in [pool.submit(train_ablation_arm, *arm, SHIPPED_STYLE_ENCODER, paths[_ablation_key(*arm)])
                        for arm in todo]:
@@ -69,8 +79,9 @@ def main(seeds: int, work: Path, reuse: bool, jobs: int, context: int, out: Path
     clips = list(DATASETS.load(DATASET)(None, "test"))
     config = ProtocolConfig(context=context, seed=0)
     gt = score_arrays(_arrays(clips, [c.participants[0].motion for c in clips]), seed=0).metrics
-    metrics = {key: score_arrays(_stream("stygazetalk", ModelOptions(weights=path), clips, config), seed=0).metrics
-               for key, path in paths.items()}
+    scored = {path: score_arrays(_stream("stygazetalk", ModelOptions(weights=path), clips, config), seed=0).metrics
+              for path in set(paths.values())}
+    metrics = {key: scored[path] for key, path in paths.items()}
     lines = ["# StyGazeTalk velocity-loss ablation over seeds", "",
              f"Command: `python benchmarks/bench_stygazetalk_velocity.py --seeds {seeds} --context {context}`; "
              f"tiny SE-64 and SE-64-VEL (λ = 0.5) generators, seeds 0–{seeds - 1}, trained on the 16 embedded train "
