@@ -44,6 +44,12 @@ def suite_info(suite: str) -> tuple[list[str], dict[str, float], dict[str, bool 
         m = importlib.import_module("dyadbench.metrics.dualtalk")
         keys = [k for name in m.PAPER_ORDER if m.METRIC_INFO[name].in_paper for k in m.METRIC_INFO[name].keys()]
         return keys, dict(m.SCALE), dict(m.HIGHER_IS_BETTER)
+    if suite == "l2l":
+        m = importlib.import_module("dyadbench.metrics.l2l")
+        components = m.L2LParams().components
+        keys = [f"{name}_{c}" for name in m.METRIC_NAMES for c in components]
+        better = {f"{name}_{c}": m.HIGHER_IS_BETTER[name] for name in m.METRIC_NAMES for c in components}
+        return keys, {k: 1.0 for k in keys}, better
     return [], {}, {}
 
 

@@ -54,7 +54,10 @@ def test_motion_is_reordered_to_flame56(tmp_path):
     assert clip.participants[0].name == "listener" and clip.fps == 30.0
     np.testing.assert_array_equal(motion, l2l_to_flame56(faces[0]))
     assert np.allclose(motion[:, 50:53], 0.2) and np.allclose(motion[:, 53:56], 0.1)  # [exp | jaw | rotation]
-    assert clip.meta["speaker_mel"].shape == (256, 128)
+    assert clip.participant("speaker").speech_features.shape == (256, 128)
+    assert clip.participant("speaker").feature_rows_per_frame == 4
+    assert clip.participant("listener").speech_features is None
+    assert clip.agent_ids() == [f"{clip.clip_id}_listener"]
 
 
 def test_validation_reports_mismatched_pairs(tmp_path):

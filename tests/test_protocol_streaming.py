@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -127,6 +129,64 @@ def test_single_participant_sessions_stream_with_empty_user_arrays():
     for t in spy.turns:
         assert t.user_motion.shape == ((t.history_turns + 1) * 25, 0) and t.user_audio.shape == (0,)
         assert t.current_user_audio.shape == (0,)
+
+
+def _with_features(clip, rows: int = 4, bins: int = 6):
+    """``clip`` with speech features (T·rows, bins) on its second participant only."""
+    p1, p2 = clip.participants
+    feats = np.arange(p2.motion.shape[0] * rows * bins, dtype=np.float32).reshape(-1, bins)
+    return replace(clip, participants=(p1, replace(p2, speech_features=feats)))
+
+
+def test_speech_features_are_sliced_like_the_motion():
+    clip = _with_features(make_clip("f", 3.0))
+    feats = clip.participant("speaker2").speech_features
+    spy = Spy()
+    stream_agent(spy, clip, "speaker1", ProtocolConfig(context=1))
+    for t in spy.turns:
+        f0, f1 = (t.turn - t.history_turns) * 25, (t.turn + 1) * 25
+        np.testing.assert_array_equal(t.user_speech_features, feats[f0 * 4:f1 * 4])
+        assert not t.user_speech_features.flags.writeable and t.user_speech_features.base is None
+        assert t.agent_speech_features is None
+    stream_agent(spy, clip, "speaker2", ProtocolConfig(context=0))
+    assert all(t.user_speech_features is None and t.agent_speech_features.shape == (100, 6) for t in spy.turns)
+
+
+def test_causality_checker_perturbs_speech_features(monkeypatch):
+    class ReadsNextFeatures(Spy):
+        def predict_turn(self, turn):  # leaks one turn of features past the current one, via the clip
+            stop = (turn.turn + 2) * 100
+            ahead = self.clip_feats[stop - 100:stop]
+            return np.full((25, 56), float(ahead.sum()) if len(ahead) == 100 else 0.0, np.float32)
+
+    clip = _with_features(make_clip("cf", 4.0))
+    check_causal(Spy, clip, "speaker1", ProtocolConfig(context=1), 1)  # reads its sliced features only
+    import dyadbench.protocol.causality as causality
+
+    original = causality.stream_agent
+
+    def recording(model, c, a, config):
+        model.clip_feats = c.participant("speaker2").speech_features
+        return original(model, c, a, config)
+
+    monkeypatch.setattr(causality, "stream_agent", recording)
+    with pytest.raises(CausalityViolation):
+        check_causal(ReadsNextFeatures, clip, "speaker1", ProtocolConfig(context=1), 1)
+
+
+@pytest.mark.parametrize("shape, match", [((99, 6), "whole rows"), ((50, 6), "whole rows"), ((100,), "whole rows")])
+def test_bad_speech_features_are_named(shape, match):
+    p1, p2 = make_clip("bf", 4.0).participants  # 100 frames
+    with pytest.raises(InputError, match=match) as err:
+        type(make_clip("bf"))("bf", (p1, replace(p2, speech_features=np.zeros(shape, np.float32))))
+    assert "bf_speaker2" in str(err.value)
+
+
+def test_clip_agents_choose_the_generated_directions():
+    clip = replace(make_clip("ag", 2.0), agents=("speaker2",))
+    assert clip.agent_ids() == ["ag_speaker2"] and [p.name for p in clip.agent_participants] == ["speaker2"]
+    with pytest.raises(InputError, match="agents must name participants"):
+        replace(clip, agents=("listener",))
 
 
 def test_short_audio_is_zero_padded():

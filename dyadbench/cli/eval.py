@@ -148,10 +148,11 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
-    Both directions of every clip are generated (speaker1 given speaker2, and the reverse), written
-    in the DualTalk/TIMAR prediction layout (so `dyadbench score OUT/predictions --gt <split folder>`
-    reproduces the numbers) and scored with the suite of the motion layout (flame56: DualTalk/TIMAR;
-    gaze7: gaze-head). Example:
+    Both directions of every clip are generated (speaker1 given speaker2, and the reverse; on
+    Learning2Listen only the listener), written in the DualTalk/TIMAR prediction layout (so `dyadbench
+    score OUT/predictions --gt <split folder>` reproduces the numbers) and scored with the suite of the
+    motion layout (flame56: DualTalk/TIMAR; gaze7: gaze-head), or the dataset's own (l2l: the L2L line).
+    Example:
       dyadbench eval --model mean-frame --split test --context 7 --clips 20
     """
     MODELS.get(model)

@@ -2,7 +2,8 @@
 
 A :class:`DyadicClip` holds both participants of a conversation (or one, for single-speaker gaze–head
 sessions): motion at ``fps`` in a named :mod:`dyadbench.motion` layout, and mono speech at
-``sample_rate``. A :class:`ClipSource` is one split of one dataset, read lazily clip by clip.
+``sample_rate`` (or, for datasets that ship no waveform, the dataset's own speech features, rows aligned
+to the motion frames). A :class:`ClipSource` is one split of one dataset, read lazily clip by clip.
 """
 
 from __future__ import annotations
@@ -20,12 +21,25 @@ from dyadbench.motion import LAYOUTS, MotionLayout
 
 @dataclass(frozen=True)
 class Participant:
-    """One person of a clip: ``motion`` (T, D) float32 in ``layout``; ``audio`` (S,) float32 mono."""
+    """One person of a clip: ``motion`` (T, D) float32 in ``layout``; ``audio`` (S,) float32 mono.
+
+    ``speech_features`` (T·r, B) float32: speech features the dataset ships in place of (or besides) a
+    waveform, r whole rows per motion frame (Learning2Listen: 4 rows of a 128-bin mel spectrogram per
+    frame); None when the dataset has none.
+    """
 
     name: str  # e.g. "speaker1"; prediction files are named "<clip>_<name>"
     motion: np.ndarray
     audio: np.ndarray
     identity: str | None = None  # persistent person/style id when the dataset has one
+    speech_features: np.ndarray | None = None
+
+    @property
+    def feature_rows_per_frame(self) -> int | None:
+        """r: speech-feature rows per motion frame (None without speech features)."""
+        if self.speech_features is None:
+            return None
+        return self.speech_features.shape[0] // max(self.motion.shape[0], 1)
 
 
 @dataclass(frozen=True)
@@ -38,6 +52,7 @@ class DyadicClip:
     sample_rate: int = 16_000
     layout: str = "flame56"
     meta: dict = field(default_factory=dict)
+    agents: tuple[str, ...] | None = None  # participants the protocol generates (None: every participant)
 
     def __post_init__(self) -> None:
         if not 1 <= len(self.participants) <= 2:
@@ -47,6 +62,11 @@ class DyadicClip:
             if p.motion.ndim != 2 or p.motion.shape[1] != dim:
                 raise InputError(f"{self.clip_id}_{p.name}",
                                  f"motion must be (T, {dim}) for layout {self.layout}, got {p.motion.shape}")
+            _check_speech_features(f"{self.clip_id}_{p.name}", p)
+        names = [p.name for p in self.participants]
+        unknown = [a for a in self.agents or () if a not in names]
+        if unknown or self.agents == ():
+            raise InputError(self.clip_id, f"agents must name participants ({', '.join(names)}), got {self.agents}")
 
     @property
     def motion_layout(self) -> MotionLayout:
@@ -72,9 +92,27 @@ class DyadicClip:
         others = [p for p in self.participants if p.name != name]
         return others[0] if others else None
 
+    @property
+    def agent_participants(self) -> tuple[Participant, ...]:
+        """The participants the protocol generates, in clip order (every one unless ``agents`` says)."""
+        return tuple(p for p in self.participants if self.agents is None or p.name in self.agents)
+
     def agent_ids(self) -> list[str]:
         """Prediction stems of every evaluated direction: ``<clip>_<participant>``."""
-        return [f"{self.clip_id}_{p.name}" for p in self.participants]
+        return [f"{self.clip_id}_{p.name}" for p in self.agent_participants]
+
+
+def _check_speech_features(source: str, p: Participant) -> None:
+    """Speech features must be (T·r, B) float rows with r ≥ 1 whole rows per motion frame."""
+    feats = p.speech_features
+    if feats is None:
+        return
+    frames = p.motion.shape[0]
+    if feats.ndim != 2 or feats.shape[1] == 0 or frames == 0 or feats.shape[0] % frames or feats.shape[0] < frames:
+        raise InputError(source, f"speech features must be (T·r, B) with r >= 1 whole rows per motion frame "
+                                 f"(T = {frames}), got {feats.shape}")
+    if feats.dtype.kind != "f":
+        raise InputError(source, f"speech features must be floating point, got dtype {feats.dtype}")
 
 
 class ClipSource(abc.ABC):
@@ -83,6 +121,7 @@ class ClipSource(abc.ABC):
     dataset: str = "unknown"
     split: str = "unknown"
     root: Path | None = None
+    suite: str | None = None  # metric suite `dyadbench eval` scores this dataset with (None: the layout's)
 
     @abc.abstractmethod
     def clip_ids(self) -> list[str]:

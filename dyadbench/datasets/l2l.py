@@ -17,7 +17,8 @@ speaker arrays. ``<root>`` may also be a single host folder (holding ``train/`` 
 
 :func:`open_split` yields one clip per window, ``<host>_<split>_<n:05d>``, with participants
 ``listener`` and ``speaker`` (flame56 motion at 30 fps, no waveform: the speaker's mel spectrogram is
-``meta["speaker_mel"]``). A listener prediction is named ``<clip>_listener``.
+its ``speech_features``, 4 rows × 128 bins per frame). Only the listener is generated (``agents``), and
+``dyadbench eval`` scores it with the L2L-line suite; a listener prediction is named ``<clip>_listener``.
 """
 
 from __future__ import annotations
@@ -139,6 +140,7 @@ class L2LSource(ClipSource):
     """Windows of every host of one split, as two-participant clips (listener, speaker)."""
 
     dataset = "l2l"
+    suite = "l2l"
 
     def __init__(self, root: Path, split: str):
         self.root = Path(root)
@@ -156,11 +158,11 @@ class L2LSource(ClipSource):
         empty = np.zeros(0, dtype=np.float32)
         participants = (
             Participant(AGENT, l2l_to_flame56(hs.listener_faces[n]).astype(np.float32), empty, identity=hs.host),
-            Participant("speaker", l2l_to_flame56(hs.speaker_faces[n]).astype(np.float32), empty),
+            Participant("speaker", l2l_to_flame56(hs.speaker_faces[n]).astype(np.float32), empty,
+                        speech_features=hs.speaker_audio[n].astype(np.float32)),
         )
-        meta = {"host": hs.host, "window": n, "speaker_mel": hs.speaker_audio[n].astype(np.float32),
-                "files": hs.speaker_files[n].astype(str).tolist()}
-        return DyadicClip(clip_id, participants, fps=FPS, layout="flame56", meta=meta)
+        meta = {"host": hs.host, "window": n, "files": hs.speaker_files[n].astype(str).tolist()}
+        return DyadicClip(clip_id, participants, fps=FPS, layout="flame56", meta=meta, agents=(AGENT,))
 
 
 def open_split(root: str | Path | None, split: str) -> L2LSource:

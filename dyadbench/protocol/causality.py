@@ -1,9 +1,9 @@
 """Causality check for streaming models: outputs up to turn t must not depend on anything after turn t.
 
 :func:`check_causal` streams a clip twice through fresh models from ``model_factory`` — once as is and
-once with every input after turn t replaced (both participants' motion and speech: seeded Gaussian
-noise at a different scale and offset) — and requires the outputs of turns 0..t to be identical. For a
-model that is not an oracle the agent's ground-truth motion is replaced over the whole clip as well
+once with every input after turn t replaced (both participants' motion, speech and speech features:
+seeded Gaussian noise at a different scale and offset) — and requires the outputs of turns 0..t to be
+identical. For a model that is not an oracle the agent's ground-truth motion is replaced over the whole clip as well
 (after its seed window, ``ModelInfo.seed_frames``): the protocol never hands it to such a model, so
 nothing may change. Every model's tests call this.
 """
@@ -29,7 +29,8 @@ class CausalityViolation(AssertionError):
 
 def perturb_after(clip: DyadicClip, first_frame: int, *, agent: str | None = None, agent_from: int = 0,
                   seed: int = 0) -> DyadicClip:
-    """A copy of ``clip`` whose motion from ``first_frame`` and audio from the matching sample are replaced.
+    """A copy of ``clip`` whose motion from ``first_frame``, audio from the matching sample and speech
+    features from the matching row are replaced.
 
     Replacement values are seeded Gaussian noise with 3x the array's scale plus an offset, so any read of
     them shows. When ``agent`` is given, that participant's motion is replaced from frame ``agent_from``
@@ -40,8 +41,10 @@ def perturb_after(clip: DyadicClip, first_frame: int, *, agent: str | None = Non
     for p in clip.participants:
         gen = rng(seed, clip.clip_id, p.name)
         motion_from = min(agent_from, first_frame) if p.name == agent else first_frame
-        participants.append(Participant(p.name, _replace_from(p.motion, motion_from, gen),
-                                        _replace_from(p.audio, first_sample, gen), p.identity))
+        r = p.feature_rows_per_frame
+        participants.append(Participant(
+            p.name, _replace_from(p.motion, motion_from, gen), _replace_from(p.audio, first_sample, gen),
+            p.identity, None if r is None else _replace_from(p.speech_features, first_frame * r, gen)))
     return replace(clip, participants=tuple(participants))
 
 

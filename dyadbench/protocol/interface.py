@@ -79,6 +79,9 @@ class TurnInput:
     - ``agent_motion_oracle`` ((h+1)·F, D): the agent's ground truth, given only to models whose
       :class:`ModelInfo` says ``oracle=True``, and for the turns that lie entirely inside a model's seed
       window (``ModelInfo.seed_frames``); ``None`` otherwise.
+    - ``user_speech_features`` / ``agent_speech_features`` ((h+1)·F·r, B): the speech features the
+      dataset ships for that person (r rows per frame, e.g. Learning2Listen's 4 × 128-bin mel rows),
+      over the same window; ``None`` when the dataset ships none (then use the waveform).
     """
 
     turn: int
@@ -90,6 +93,8 @@ class TurnInput:
     agent_audio: np.ndarray
     agent_history: np.ndarray | None = None
     agent_motion_oracle: np.ndarray | None = None
+    user_speech_features: np.ndarray | None = None
+    agent_speech_features: np.ndarray | None = None
 
     @property
     def current_user_motion(self) -> np.ndarray:

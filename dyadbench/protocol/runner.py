@@ -1,13 +1,15 @@
-"""Run one model over one split: both directions of every clip, predictions written, then scored.
+"""Run one model over one split: every evaluated direction of every clip, predictions written, then scored.
 
-:func:`evaluate` builds the model from :data:`dyadbench.registry.MODELS`, streams every direction of
-every clip through :func:`~dyadbench.protocol.streaming.stream_agent` (or the offline protocol for
-full-sequence models), writes each prediction as ``<clip>_<agent>.npy`` (T', D) float32 — the
-DualTalk/TIMAR prediction layout, so ``dyadbench score`` on the folder reproduces the numbers — and
-scores the same arrays with the suite of the motion layout (flame56: DualTalk/TIMAR suite; gaze7: the
-gaze–head suite). With ``jobs > 1`` clips are streamed in that many worker processes (each building
-its own model from the same options; forked, or spawned once torch is loaded) and the suite scores with
-``jobs`` workers too.
+:func:`evaluate` builds the model from :data:`dyadbench.registry.MODELS`, streams every evaluated
+direction (each participant the clip names as an agent, by default both) of every clip through
+:func:`~dyadbench.protocol.streaming.stream_agent` (or the offline protocol for full-sequence models),
+writes each prediction as ``<clip>_<agent>.npy`` (T', D) float32 — the DualTalk/TIMAR prediction
+layout, so ``dyadbench score`` on the folder reproduces the numbers — and scores the same arrays with
+the dataset's own suite where it names one (``ClipSource.suite``; Learning2Listen: the L2L line) and
+otherwise the suite of the motion layout (flame56: DualTalk/TIMAR suite; gaze7: the gaze–head suite).
+With ``jobs > 1`` clips are streamed in that many worker processes (each building its own model from
+the same options; forked, or spawned once torch is loaded) and the suite scores with ``jobs`` workers
+too.
 Scores are memoised within a process by a digest of the scored arrays (:func:`score_items`), so a sweep
 scores the byte-identical predictions of a history-free model once across context lengths; streaming
 and timing are always run.
@@ -79,7 +81,7 @@ def run_direction(model: StreamingModel | OfflineModel, clip, agent: str, config
 def _stream_clip(model, source: ClipSource, clip_id: str, config: ProtocolConfig, keep_audio: bool) -> list[_Streamed]:
     clip = source.load(clip_id)
     out = []
-    for p in clip.participants:
+    for p in clip.agent_participants:
         partner = clip.partner_of(p.name)
         result = run_direction(model, clip, p.name, config)
         out.append(_Streamed(result, ScoreItem(
@@ -138,7 +140,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     layout = source.load(ids[0]).layout
     if layout not in SUITE_OF_LAYOUT:
         raise ConfigError(f"no metric suite for motion layout {layout!r}")
-    suite = SUITE_OF_LAYOUT[layout]
+    suite = source.suite or SUITE_OF_LAYOUT[layout]
     options = options or ModelOptions(seed=config.seed)
     options = replace(options, extra={**options.extra, "layout": layout, "turn_seconds": config.turn_seconds})
     model = build_model(model_name, options)

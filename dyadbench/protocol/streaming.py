@@ -13,7 +13,8 @@ motion is zero-padded at the end; frames after the last whole turn are dropped (
 or filled with the last predicted frame (``tail = pad-last``).
 
 Single-participant clips (gaze–head sessions) stream with empty user arrays: ``user_motion`` has shape
-(frames, 0) and ``user_audio`` shape (0,).
+(frames, 0) and ``user_audio`` shape (0,). Speech features a dataset ships (``Participant.speech_features``,
+r rows per frame) are sliced over the same frames as the motion; they are ``None`` when it ships none.
 """
 
 from __future__ import annotations
@@ -90,6 +91,8 @@ def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: Pr
                                      np.zeros((0, dim), np.float32))
                            if config.history_agent == "outputs" else None),
             agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if oracle or f1 <= seed else None,
+            user_speech_features=feature_window(partner, f0, f1) if partner else None,
+            agent_speech_features=feature_window(agent_p, f0, f1),
         )
         start = time.perf_counter()
         out = model.predict_turn(turn)
@@ -132,6 +135,12 @@ def readonly_window(array: np.ndarray, start: int, stop: int) -> np.ndarray:
     if missing > 0:
         part = np.concatenate([part, np.zeros((missing,) + part.shape[1:], np.float32)], axis=0)
     return make_readonly(part)
+
+
+def feature_window(person: Participant, start: int, stop: int) -> np.ndarray | None:
+    """Read-only copy of ``person``'s speech-feature rows of frames [start, stop) (None without features)."""
+    r = person.feature_rows_per_frame
+    return None if r is None else readonly_window(person.speech_features, start * r, stop * r)
 
 
 def make_readonly(array: np.ndarray) -> np.ndarray:

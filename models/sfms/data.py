@@ -3,9 +3,12 @@
 - Motion is z-scored per dim with train-split statistics (both participants pooled); the neutral
   frame is the zero vector of that space (spec §1.3).
 - Speaker audio: log-mel rows at ``audio_rows_per_frame`` rows per motion frame (hop 10 ms at 25 fps),
-  standardised per bin with train statistics.
+  standardised per bin with train statistics. A dataset that ships speech features instead of a
+  waveform (Learning2Listen: 4 rows of a 128-bin mel per frame) is read as shipped; they must have the
+  predictor's ``audio_bins`` and ``audio_rows_per_frame``.
 - A *directed* clip pairs a listener (the generated participant) with the partner as speaker; every
-  two-participant clip gives both directions.
+  participant a clip generates (``DyadicClip.agent_participants``: both for the embedded corpus, the
+  listener for Learning2Listen) gives one direction.
 """
 
 from __future__ import annotations
@@ -51,6 +54,23 @@ def speech_rows(audio: np.ndarray, sample_rate: int, fps: float, cfg: PredictorC
                          win_length=int(round(cfg.audio_window_s * sample_rate)))
 
 
+def speaker_rows(features: np.ndarray | None, audio: np.ndarray, frames: int, sample_rate: int, fps: float,
+                 cfg: PredictorConfig, source: str) -> np.ndarray:
+    """The predictor's speech rows for ``frames`` motion frames: the dataset's own speech features when it
+    ships them (checked against ``audio_bins`` and ``audio_rows_per_frame``), else the log-mel of ``audio``."""
+    if features is not None:
+        rows, bins = features.shape
+        if bins != cfg.audio_bins or rows != frames * cfg.audio_rows_per_frame:
+            raise InputError(source, f"the dataset ships speech features of {bins} bins × {rows / max(frames, 1):g} "
+                                     f"rows per frame; this SFMS predictor reads {cfg.audio_bins} × "
+                                     f"{cfg.audio_rows_per_frame} (train one on this dataset: `dyadbench train "
+                                     f"sfms ... --set audio_bins={bins}`)")
+        return np.asarray(features, np.float32)
+    if np.size(audio) == 0:
+        raise InputError(source, "no speech: neither a waveform nor speech features")
+    return speech_rows(np.asarray(audio, np.float32), sample_rate, fps, cfg)
+
+
 @dataclass(frozen=True)
 class DirectedClip:
     """One listener/speaker direction of a clip, all normalised: motion (T, d), audio (T·rows, bins)."""
@@ -63,7 +83,7 @@ class DirectedClip:
 
 def directed_clips(clips: Iterable[DyadicClip], cfg: PredictorConfig
                    ) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray]]:
-    """Raw (name, listener motion, speaker motion, speaker rows) for both directions of every clip.
+    """Raw (name, listener motion, speaker motion, speaker rows) for every generated direction of every clip.
 
     ``clips`` may be a generator, so a large split is read one clip at a time (waveforms are dropped).
     """
@@ -72,9 +92,12 @@ def directed_clips(clips: Iterable[DyadicClip], cfg: PredictorConfig
         if len(clip.participants) != 2:
             raise InputError(clip.clip_id, "SFMS needs two-participant clips (a listener and a speaker)")
         t = clip.num_frames
-        for listener in clip.participants:
+        for listener in clip.agent_participants:
             speaker = clip.partner_of(listener.name)
-            rows = speech_rows(speaker.audio, clip.sample_rate, clip.fps, cfg)[: t * cfg.audio_rows_per_frame]
+            r = speaker.feature_rows_per_frame
+            rows = speaker_rows(None if r is None else speaker.speech_features[: t * r], speaker.audio, t,
+                                clip.sample_rate, clip.fps, cfg, f"{clip.clip_id}_{speaker.name}")
+            rows = rows[: t * cfg.audio_rows_per_frame]
             if rows.shape[0] < t * cfg.audio_rows_per_frame:
                 raise InputError(f"{clip.clip_id}_{speaker.name}", f"speech shorter than the motion ({t} frames)")
             out.append((f"{clip.clip_id}_{listener.name}", np.asarray(listener.motion[:t], np.float32),
