@@ -1,12 +1,14 @@
 """Nearest-neighbour retrieval: the agent motion of the train turn whose partner behaved most alike.
 
-Index (fitted on the train split, cached by its digest): every whole turn of both directions of up to
-``MAX_TRAIN_CLIPS`` train clips (evenly spaced over the sorted clip ids). A turn is described by its
-partner's behaviour in that turn only:
+Index (fitted on the train split, cached by its digest): every whole turn of every generated direction
+(both, or the clip's ``agents``) of up to ``MAX_TRAIN_CLIPS`` train clips (evenly spaced over the sorted
+clip ids). A turn is described by its partner's behaviour in that turn only:
 
 - partner motion: per-dimension mean and standard deviation over the turn's frames (2·D values);
 - partner speech: mean and standard deviation over the turn's frames of the 40-band log-mel features
-  of the turn's audio (:func:`dyadbench.features.logmel.logmel_frames`; 80 values).
+  of the turn's audio (:func:`dyadbench.features.logmel.logmel_frames`; 80 values), or, for a dataset
+  that ships speech features instead of a waveform (Learning2Listen), over the turn's feature rows
+  (2·B values; the index records which, and a stream must match it).
 
 Each feature is standardised with the index's mean and standard deviation, the motion and the speech
 block are each divided by √(block size) so both weigh the same, and the result is projected on its
@@ -31,17 +33,29 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import (ModelInfo, ModelOptions, OfflineModel, StreamContext, StreamingModel,
                                           TurnInput)
 
-FIT_VERSION = 1
+FIT_VERSION = 2
 MAX_TRAIN_CLIPS = 256
 PCA_DIMS = 24
 N_MELS = 40
 
 
-def partner_features(user_motion: np.ndarray, user_audio: np.ndarray, sample_rate: int, fps: float) -> np.ndarray:
-    """Raw features of K turns: user_motion (K, F, D), user_audio (K, S) -> (K, 2·D + 2·N_MELS)."""
-    mels = np.stack([logmel_frames(a, sample_rate, fps, n_mels=N_MELS) for a in user_audio])
+def turn_speech(user_audio: np.ndarray, user_features: np.ndarray | None, sample_rate: int, fps: float) -> np.ndarray:
+    """Speech rows of K turns: the shipped features (K, R, B) when given, else the log-mel of each turn's
+    audio (K, S) -> (K, F, N_MELS)."""
+    if user_features is not None:
+        return np.asarray(user_features, np.float64)
+    return np.stack([logmel_frames(a, sample_rate, fps, n_mels=N_MELS) for a in user_audio])
+
+
+def partner_features(user_motion: np.ndarray, speech: np.ndarray) -> np.ndarray:
+    """Raw features of K turns: user_motion (K, F, D), speech rows (K, R, B) -> (K, 2·D + 2·B)."""
     return np.concatenate([user_motion.mean(axis=1), user_motion.std(axis=1),
-                           mels.mean(axis=1), mels.std(axis=1)], axis=1).astype(np.float64)
+                           speech.mean(axis=1), speech.std(axis=1)], axis=1).astype(np.float64)
+
+
+def speech_kind(features: np.ndarray | None) -> str:
+    """What describes the partner's speech: ``log-mel`` of the waveform or the dataset's ``features-<B>``."""
+    return "log-mel" if features is None else f"features-{features.shape[-1]}"
 
 
 def split_turns(array: np.ndarray, num_turns: int, per_turn: int) -> np.ndarray:
@@ -57,7 +71,7 @@ def build_index(source: ClipSource, turn_seconds: float) -> dict[str, np.ndarray
     ids = source.clip_ids()
     chosen = ids[::max(1, math.ceil(len(ids) / MAX_TRAIN_CLIPS))]
     config = ProtocolConfig(turn_seconds=turn_seconds, context=0)
-    features, targets = [], []
+    features, targets, kinds = [], [], set()
     fps = sample_rate = None
     for clip_id in tqdm(chosen, desc="building retrieval index", unit="clip", leave=False):
         clip = source.load(clip_id)
@@ -68,25 +82,33 @@ def build_index(source: ClipSource, turn_seconds: float) -> dict[str, np.ndarray
         K = clip.num_frames // F
         if K == 0:
             continue
-        for agent in clip.participants:
+        for agent in clip.agent_participants:
             user = clip.partner_of(agent.name)
-            features.append(partner_features(split_turns(np.asarray(user.motion, np.float64), K, F),
-                                             split_turns(np.asarray(user.audio, np.float32), K, S), sample_rate, fps))
+            r = user.feature_rows_per_frame
+            feats = None if r is None else split_turns(user.speech_features, K, F * r)
+            speech = turn_speech(split_turns(np.asarray(user.audio, np.float32), K, S), feats, sample_rate, fps)
+            features.append(partner_features(split_turns(np.asarray(user.motion, np.float64), K, F), speech))
             targets.append(split_turns(np.asarray(agent.motion, np.float32), K, F))
+            kinds.add(speech_kind(feats))
     if not features:
         raise InputError(f"{source.dataset}/{source.split}", "no whole turns in the train clips")
+    if len(kinds) > 1:
+        raise InputError(f"{source.dataset}/{source.split}", f"partners' speech differs between clips: "
+                                                             f"{', '.join(sorted(kinds))}")
     raw = np.concatenate(features)
     mean, std = raw.mean(axis=0), raw.std(axis=0)
     std[std < 1e-8] = 1.0
-    motion_dims = raw.shape[1] - 2 * N_MELS
+    motion_dims = 2 * targets[0].shape[-1]
+    speech_dims = raw.shape[1] - motion_dims
     weights = np.concatenate([np.full(motion_dims, 1 / math.sqrt(motion_dims)),
-                              np.full(2 * N_MELS, 1 / math.sqrt(2 * N_MELS))])
+                              np.full(speech_dims, 1 / math.sqrt(speech_dims))])
     z = (raw - mean) / std * weights
     _, _, vt = np.linalg.svd(z - z.mean(axis=0), full_matrices=False)
     axes = vt[:min(PCA_DIMS, vt.shape[0])]
     return {"feat_mean": mean, "feat_std": std, "weights": weights, "z_mean": z.mean(axis=0), "axes": axes,
             "points": (z - z.mean(axis=0)) @ axes.T, "targets": np.concatenate(targets),
-            "fps": np.array(fps), "sample_rate": np.array(sample_rate), "clips": np.array(len(chosen))}
+            "fps": np.array(fps), "sample_rate": np.array(sample_rate), "clips": np.array(len(chosen)),
+            "speech": np.array(kinds.pop())}
 
 
 class NearestTurnRetrieval(StreamingModel, OfflineModel):
@@ -112,24 +134,32 @@ class NearestTurnRetrieval(StreamingModel, OfflineModel):
                               f"{float(self.index['fps'])} fps / {int(self.index['sample_rate'])} Hz; the stream "
                               f"has {ctx.frames_per_turn}-frame turns at {ctx.fps} fps / {ctx.sample_rate} Hz")
 
-    def _retrieve(self, user_motion: np.ndarray, user_audio: np.ndarray, sample_rate: int, fps: float) -> np.ndarray:
-        raw = partner_features(user_motion.astype(np.float64), user_audio, sample_rate, fps)
-        _, nearest = self.tree.query(self._project(raw), k=1)
+    def _retrieve(self, user_motion: np.ndarray, user_audio: np.ndarray, user_features: np.ndarray | None,
+                  sample_rate: int, fps: float, source: str) -> np.ndarray:
+        kind, built = speech_kind(user_features), str(self.index["speech"])
+        if kind != built:
+            raise InputError(source, f"nn-retrieval's index describes the partner's speech by {built}; this "
+                                     f"stream's partner has {kind}")
+        speech = turn_speech(user_audio, user_features, sample_rate, fps)
+        _, nearest = self.tree.query(self._project(partner_features(user_motion.astype(np.float64), speech)), k=1)
         return self.index["targets"][nearest]
 
     def start_stream(self, ctx: StreamContext) -> None:
         self._check(ctx)
-        self._sr, self._fps = ctx.sample_rate, ctx.fps
+        self._ctx = ctx
 
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        return self._retrieve(turn.current_user_motion[None], turn.current_user_audio[None], self._sr, self._fps)[0]
+        ctx, feats = self._ctx, turn.user_speech_features
+        current = None if feats is None else feats[-(feats.shape[0] // (turn.history_turns + 1)):][None]
+        return self._retrieve(turn.current_user_motion[None], turn.current_user_audio[None], current,
+                              ctx.sample_rate, ctx.fps, f"{ctx.clip_id}_{ctx.user}")[0]
 
     def predict_clip(self, ctx: StreamContext, user_motion: np.ndarray, user_audio: np.ndarray,
                      agent_audio: np.ndarray) -> np.ndarray:
         self._check(ctx)
         K, F = ctx.num_turns, ctx.frames_per_turn
         turns = self._retrieve(split_turns(user_motion, K, F), split_turns(user_audio, K, ctx.samples_per_turn),
-                               ctx.sample_rate, ctx.fps).reshape(K * F, -1)
+                               None, ctx.sample_rate, ctx.fps, f"{ctx.clip_id}_{ctx.user}").reshape(K * F, -1)
         tail = user_motion.shape[0] - K * F
         return np.concatenate([turns, np.repeat(turns[-1:], tail, axis=0)]) if tail else turns
 

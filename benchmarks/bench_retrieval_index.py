@@ -20,7 +20,7 @@ import time
 import numpy as np
 from scipy.spatial import cKDTree
 
-from baselines.retrieval import split_turns, build_index, partner_features
+from baselines.retrieval import build_index, partner_features, split_turns, turn_speech
 from dyadbench.datasets.base import InMemorySource
 from dyadbench.synth.corpus import make_clips
 
@@ -31,8 +31,8 @@ def _queries(clips, frames: int, samples: int) -> np.ndarray:
         k = clip.num_frames // frames
         for agent in clip.participants:
             user = clip.partner_of(agent.name)
-            rows.append(partner_features(split_turns(np.asarray(user.motion, np.float64), k, frames),
-                                         split_turns(user.audio, k, samples), clip.sample_rate, clip.fps))
+            speech = turn_speech(split_turns(user.audio, k, samples), None, clip.sample_rate, clip.fps)
+            rows.append(partner_features(split_turns(np.asarray(user.motion, np.float64), k, frames), speech))
     return np.concatenate(rows)
 
 

@@ -13,6 +13,11 @@ smooth score from picking adjacent frames.
 The naive references in the same run are the static (uniform i·⌊T/k⌋) arm at each k and the dense
 per-frame arm; the table gives MSE ratios to the suppressed dynamic arm (> 1: dynamic is better) and
 the bits each arm's tokens carry per window: k·log2(codes), plus log2 C(T, k) for learned positions.
+At equal codebook size the dense arm carries several times the bits of a sparse one, so a second table
+compares at (about) equal bits: for each k a dense arm whose one-level FSQ has L codes per frame, L the
+whole number ≥ 2 nearest 2^(bits of dynamic k / 48). A third reference needs no network: every test frame
+replaced by the nearest of as many k-means centroids of single train frames as the shared codebook has
+codes (memoryless per-frame quantisation).
 """
 
 from __future__ import annotations
@@ -28,6 +33,7 @@ from pathlib import Path
 import click
 import numpy as np
 import torch
+from sklearn.cluster import KMeans
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
@@ -57,6 +63,22 @@ def auto_radius(window: int, k: int) -> int:
     return window // (2 * k)
 
 
+def equal_bits_levels(bits: float, window: int) -> int:
+    """L ≥ 2 codes per frame whose dense window (window·log2 L bits) is nearest ``bits``."""
+    return max(2, round(2.0 ** (bits / window)))
+
+
+def frame_kmeans_mse(train: list[np.ndarray], test: np.ndarray, codes: int, seed: int,
+                     sample: int = 60_000) -> float:
+    """Test MSE when each frame is replaced by the nearest of ``codes`` k-means centroids of single train
+    frames (at most ``sample`` frames drawn with ``seed``; sklearn KMeans, one init)."""
+    frames = np.concatenate(train)
+    pick = np.random.default_rng(seed).choice(len(frames), size=min(sample, len(frames)), replace=False)
+    km = KMeans(codes, n_init=1, random_state=seed, max_iter=100).fit(frames[pick])
+    flat = test.reshape(-1, test.shape[-1])
+    return float(((flat - km.cluster_centers_[km.predict(flat)]) ** 2).mean())
+
+
 def window_bits(mode: str, k: int, n_codes: int, window: int) -> float:
     """Bits per window the tokens can carry: k·log2(codes), + log2 C(T, k) when positions are learned."""
     bits = k * math.log2(n_codes)
@@ -73,31 +95,44 @@ def _load_corpus_once(clips: int, test_windows: int, threads: int) -> None:
     _CORPUS = load_corpus(clips, test_windows)
 
 
-def run_arm(arm: tuple[str, int, int], common: dict, seed: int) -> dict:
-    """Train and score one arm (mode, k, suppression radius) on the worker's corpus."""
-    mode, k, radius = arm
+def run_arm(arm: tuple[str, int, int, tuple[int, ...]], common: dict, seed: int) -> dict:
+    """Train and score one arm (mode, k, suppression radius, FSQ levels) on the worker's corpus."""
+    mode, k, radius, levels = arm
     train, test, mean, std = _CORPUS
-    cfg = tokenizer_preset("tiny", keyframe_mode=mode, keyframes=k, suppression_radius=radius, **common)
+    cfg = tokenizer_preset("tiny", keyframe_mode=mode, keyframes=k, suppression_radius=radius, fsq_levels=levels,
+                           **common)
     t0 = time.perf_counter()
     model, history = fit_tokenizer(cfg, train, test[:64], motion_mean=mean, motion_std=std, seed=seed,
                                    progress=False)
     scores = reconstruction_mse(model, test)
-    return {"mode": mode, "k": cfg.effective_keyframes, "radius": radius, **scores,
+    return {"mode": mode, "k": cfg.effective_keyframes, "radius": radius, "levels": list(levels), **scores,
             "bits": window_bits(mode, cfg.effective_keyframes, cfg.n_codes, cfg.window),
             "seconds": time.perf_counter() - t0, "n_test": len(test), "config": to_dict(cfg)}
 
 
-def table_rows(rows: dict[tuple[str, int, int], dict], suppressed: list[tuple[int, int]]) -> list[str]:
+def table_rows(rows: dict[tuple, dict], suppressed: list[tuple[int, int]], fsq: tuple[int, ...]) -> list[str]:
     """One markdown row per (k, radius of the suppressed arm): MSE of every arm, ratios to the suppressed
-    dynamic arm, bits per window. ``rows`` are keyed by arm (mode, k, radius)."""
-    dense = rows["dense", 48, 0]
+    dynamic arm, bits per window. ``rows`` are keyed by arm (mode, k, radius, levels)."""
+    dense = rows["dense", 48, 0, fsq]
     out = []
     for k, radius in suppressed:
-        plain, sup, sta = rows["dynamic", k, 0], rows["dynamic", k, radius], rows["static", k, 0]
+        plain, sup, sta = rows["dynamic", k, 0, fsq], rows["dynamic", k, radius, fsq], rows["static", k, 0, fsq]
         out.append(f"| {k} | {plain['mse_z']:.4f} | {radius} | {sup['mse_z']:.4f} | {sta['mse_z']:.4f} | "
                    f"{sta['mse_z'] / sup['mse_z']:.3f} | {plain['mse_z'] / sup['mse_z']:.3f} | {dense['mse_z']:.4f} | "
                    f"{dense['mse_z'] / sup['mse_z']:.3f} | {sup['mse_raw']:.5f} | {sta['mse_raw']:.5f} | "
                    f"{dense['mse_raw']:.5f} | {sup['bits']:.0f} / {sta['bits']:.0f} / {dense['bits']:.0f} |")
+    return out
+
+
+def equal_bits_rows(rows: dict[tuple, dict], suppressed: list[tuple[int, int]], fsq: tuple[int, ...]) -> list[str]:
+    """One markdown row per k: the suppressed dynamic, static and equal-bits dense arms, bits and MSE (z)."""
+    out = []
+    for k, radius in suppressed:
+        sup, sta = rows["dynamic", k, radius, fsq], rows["static", k, 0, fsq]
+        levels = (equal_bits_levels(sup["bits"], 48),)
+        dense = rows["dense", 48, 0, levels]
+        out.append(f"| {k} | {sup['bits']:.0f} | {sup['mse_z']:.4f} | {sta['bits']:.0f} | {sta['mse_z']:.4f} | "
+                   f"{levels[0]} | {dense['bits']:.0f} | {dense['mse_z']:.4f} | {dense['mse_z'] / sup['mse_z']:.3f} |")
     return out
 
 
@@ -137,11 +172,15 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
     r_choice = parse_radius(radius)
     fsq = tuple(int(v) for v in levels.split(","))
     common = dict(steps=steps, batch=batch, lr_main=lr, lr_scorer=lr / 2, gumbel_samples=samples,
-                  fsq_levels=fsq, val_every=max(steps // 4, 1), normalisation="zscore")  # load_corpus z-scores
+                  val_every=max(steps // 4, 1), normalisation="zscore")  # load_corpus z-scores
     suppressed = [(k, auto_radius(48, k) if r_choice == "auto" else r_choice) for k in k_values]
-    arms = [("dense", 48, 0)]
+    codes = math.prod(fsq)
+    arms = [("dense", 48, 0, fsq)]
     for k, r in suppressed:
-        arms += [("static", k, 0), ("dynamic", k, 0), ("dynamic", k, r)]
+        arms += [("static", k, 0, fsq), ("dynamic", k, 0, fsq), ("dynamic", k, r, fsq)]
+    for k, _ in suppressed:
+        equal = ("dense", 48, 0, (equal_bits_levels(window_bits("dynamic", k, codes, 48), 48),))
+        arms += [equal] if equal not in arms else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=jobs, initializer=_load_corpus_once,
                              initargs=(clips, test_windows, threads)) as pool:
@@ -149,10 +188,11 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
         rows = {}
         for arm, future in zip(arms, futures):
             row = rows[arm] = future.result()
-            click.echo(f"{row['mode']:8s} k={row['k']:2d} r={row['radius']}  MSE z {row['mse_z']:.4f}  "
-                       f"raw {row['mse_raw']:.5f}  ({row['seconds']:.0f} s)", err=True)
+            click.echo(f"{row['mode']:8s} k={row['k']:2d} r={row['radius']} levels={row['levels']}  MSE z "
+                       f"{row['mse_z']:.4f}  raw {row['mse_raw']:.5f}  ({row['seconds']:.0f} s)", err=True)
+        train, test, _, _ = load_corpus(clips, test_windows)
+        kmeans = frame_kmeans_mse(train, test, codes, seed)
     wall = time.perf_counter() - t0
-    codes = math.prod(fsq)
     lines = [
         "# SFMS keyframes: dynamic vs static vs dense (Tables III–IV on the embedded corpus)",
         "",
@@ -175,7 +215,18 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
         "| dynamic r = 0 / dynamic r | dense MSE (z) (k = 48) | dense / dynamic r | dynamic r raw | static raw "
         "| dense raw | bits: dynamic / static / dense |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
-        *table_rows(rows, suppressed),
+        *table_rows(rows, suppressed, fsq),
+        "",
+        "At about equal bits per window (dense arms with L codes per frame, one FSQ level; ratio > 1: dynamic r "
+        "reconstructs better):",
+        "",
+        "| k | dynamic r bits | dynamic r MSE (z) | static bits | static MSE (z) | dense L | dense bits | "
+        "dense MSE (z) | dense / dynamic r |",
+        "|---|---|---|---|---|---|---|---|---|",
+        *equal_bits_rows(rows, suppressed, fsq),
+        "",
+        f"Memoryless per-frame quantisation, no network: each test frame replaced by the nearest of {codes} k-means "
+        f"centroids of single train frames (60 000 drawn, seed {seed}): MSE (z) {kmeans:.4f}.",
         "",
         f"Wall time: {wall:.0f} s for {len(rows)} arms "
         f"({sum(r['seconds'] for r in rows.values()):.0f} s of training) on "

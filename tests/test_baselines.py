@@ -115,10 +115,13 @@ def test_retrieval_features_describe_partner_motion_and_speech():
     r = np.random.default_rng(0)
     motion = r.standard_normal((2, 25, 56))
     audio = r.standard_normal((2, 16000)).astype(np.float32)
-    feats = retrieval.partner_features(motion, audio, 16000, 25.0)
+    feats = retrieval.partner_features(motion, retrieval.turn_speech(audio, None, 16000, 25.0))
     assert feats.shape == (2, 2 * 56 + 2 * retrieval.N_MELS)
     np.testing.assert_allclose(feats[:, :56], motion.mean(axis=1))
     np.testing.assert_allclose(feats[:, 56:112], motion.std(axis=1))
+    shipped = r.standard_normal((2, 100, 128))  # dataset speech features: 4 rows × 128 bins per frame
+    feats = retrieval.partner_features(motion, retrieval.turn_speech(audio, shipped, 16000, 25.0))
+    np.testing.assert_allclose(feats[:, 112:], np.concatenate([shipped.mean(axis=1), shipped.std(axis=1)], axis=1))
 
 
 def test_retrieval_index_is_built_for_the_protocol_turn_length(train):

@@ -1,11 +1,13 @@
 """Learning2Listen line: pairing rule, layout reading/validation, writer, suite values, scoring end to end."""
 
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from baselines.retrieval import build_nn_retrieval
 from dyadbench.cli import cli
 from dyadbench.datasets import l2l as layout
 from dyadbench.errors import InputError
@@ -13,6 +15,10 @@ from dyadbench.metrics import dualtalk
 from dyadbench.metrics.entropy import kmeans_entropy
 from dyadbench.metrics.l2l import L2LParams, keys, split_metrics
 from dyadbench.motion import l2l_to_flame56
+from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.interface import ModelOptions
+from dyadbench.protocol.runner import evaluate, open_dataset_split
+from dyadbench.protocol.streaming import stream_agent
 from dyadbench.scoring.l2l import score_arrays, score_paths
 from dyadbench.scoring.report import ScoreItem
 from dyadbench.synth.l2l_writer import resample, write_l2l_split
@@ -163,3 +169,37 @@ def test_cli_end_to_end(tmp_path):
     np.savez(tmp_path / "wrong.npz", other=listener[0])
     with pytest.raises(InputError, match="no prediction named like"):
         score_paths(tmp_path / "wrong.npz", root)
+
+
+@pytest.fixture(scope="module")
+def l2l_train_test(tmp_path_factory):
+    root = tmp_path_factory.mktemp("l2l-tt")
+    write_l2l_split(root, split="train", clips=2, seed=0, progress=False)
+    write_l2l_split(root, split="test", clips=1, seed=0, progress=False)
+    return root
+
+
+@pytest.mark.parametrize("model", ["mean-frame", "random", "mime", "lagged-mirror", "nn-retrieval", "oracle"])
+def test_baselines_stream_the_listener_and_are_scored_with_the_l2l_suite(l2l_train_test, model, monkeypatch,
+                                                                         tmp_path):
+    monkeypatch.setenv("DYADBENCH_CACHE", str(tmp_path / "cache"))
+    train = lambda: open_dataset_split("l2l", l2l_train_test, "train")  # noqa: E731
+    result = evaluate(model, layout.open_split(l2l_train_test, "test"), ProtocolConfig(context=1),
+                      options=ModelOptions(train_split=train), progress=False)
+    stems = layout.ground_truth(l2l_train_test, "test")[0]
+    assert result.suite == "l2l" and sorted(r["clip"] for r in result.per_clip) == stems
+    assert np.isfinite(result.metrics["fd_exp"]) and np.isfinite(result.metrics["pfd_pose"])
+    if model == "oracle":
+        assert result.metrics["l2_exp"] == 0.0
+
+
+def test_retrieval_index_of_shipped_features_refuses_a_waveform_partner(l2l_train_test, monkeypatch, tmp_path):
+    monkeypatch.setenv("DYADBENCH_CACHE", str(tmp_path / "cache"))
+    model = build_nn_retrieval(ModelOptions(train_split=lambda: open_dataset_split("l2l", l2l_train_test, "train"),
+                                            extra={"turn_seconds": 1.0}))
+    clip = layout.open_split(l2l_train_test, "test").load("synth_test_00000")
+    listener, speaker = clip.participants
+    waveform = replace(speaker, audio=np.ones(int(64 / 30 * 16000), np.float32), speech_features=None)
+    with pytest.raises(InputError, match="features-128; this stream's partner has log-mel") as err:
+        stream_agent(model, replace(clip, participants=(listener, waveform)), "listener", ProtocolConfig())
+    assert "synth_test_00000_speaker" in str(err.value)
