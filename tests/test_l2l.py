@@ -22,6 +22,7 @@ from dyadbench.protocol.streaming import stream_agent
 from dyadbench.scoring.l2l import score_arrays, score_paths
 from dyadbench.scoring.report import ScoreItem
 from dyadbench.synth.l2l_writer import resample, write_l2l_split
+from tests.l2l_root import l2l_train_test  # noqa: F401
 
 
 def _write_host(folder, n0, n1, seed=0):
@@ -169,14 +170,6 @@ def test_cli_end_to_end(tmp_path):
     np.savez(tmp_path / "wrong.npz", other=listener[0])
     with pytest.raises(InputError, match="no prediction named like"):
         score_paths(tmp_path / "wrong.npz", root)
-
-
-@pytest.fixture(scope="module")
-def l2l_train_test(tmp_path_factory):
-    root = tmp_path_factory.mktemp("l2l-tt")
-    write_l2l_split(root, split="train", clips=2, seed=0, progress=False)
-    write_l2l_split(root, split="test", clips=1, seed=0, progress=False)
-    return root
 
 
 @pytest.mark.parametrize("model", ["mean-frame", "random", "mime", "lagged-mirror", "nn-retrieval", "oracle"])

@@ -19,13 +19,13 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.scoring import l2l as l2l_scoring
-from dyadbench.synth.l2l_writer import write_l2l_split
 from dyadbench.training.checkpoint import load_checkpoint, save_checkpoint
 from models.sfms.bundle import PREDICTOR_MODEL, SFMS
 from models.sfms.config import predictor_preset, tokenizer_preset
 from models.sfms.predictor import SFMSPredictor
 from models.sfms.registry import build_sfms
 from models.sfms.tokenizer import SFMSTokenizer
+from tests.l2l_root import l2l_train_test  # noqa: F401
 
 torch.set_num_threads(1)
 SMALL = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--steps", "3", "--batch", "4",
@@ -33,11 +33,8 @@ SMALL = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--steps", 
 
 
 @pytest.fixture(scope="module")
-def root(tmp_path_factory):
-    out = tmp_path_factory.mktemp("l2l")
-    write_l2l_split(out, split="train", clips=3, seed=0, progress=False)
-    write_l2l_split(out, split="test", clips=2, seed=0, progress=False)
-    return out
+def root(l2l_train_test):
+    return l2l_train_test
 
 
 def _weights(path, bins: int):
