@@ -5,6 +5,7 @@ tests train, stream and score SFMS on a split dyadbench writes in that layout.
 """
 
 import json
+from pathlib import Path
 
 import pytest
 import torch
@@ -20,6 +21,7 @@ from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.scoring import l2l as l2l_scoring
 from dyadbench.training.checkpoint import load_checkpoint, save_checkpoint
+import models.sfms.checkpoints
 from models.sfms.bundle import PREDICTOR_MODEL, SFMS
 from models.sfms.config import predictor_preset, tokenizer_preset
 from models.sfms.predictor import SFMSPredictor
@@ -28,6 +30,7 @@ from models.sfms.tokenizer import SFMSTokenizer
 from tests.l2l_root import l2l_train_test  # noqa: F401
 
 torch.set_num_threads(1)
+SHIPPED_L2L = Path(models.sfms.checkpoints.__file__).parent / "sfms-tiny-l2l.pt"
 SMALL = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--steps", "3", "--batch", "4",
          "--val-windows", "8", "--threads", "1"]
 
@@ -115,3 +118,12 @@ def test_train_eval_and_score_on_the_l2l_layout(root, tmp_path):
     assert res.exit_code == 0, res.output
     header = (tmp_path / "lb" / "l2l_wide.csv").read_text().splitlines()[0].split(",")
     assert header[header.index("items") + 1:] == [c.key for c in l2l_scoring.columns(L2LParams())]
+
+
+def test_shipped_l2l_checkpoint_reads_l2l_mels_and_records_its_training(clip):
+    model = build_sfms(ModelOptions(weights=SHIPPED_L2L))
+    meta = model.info.config["train_meta"]
+    assert model.info.config["predictor"]["audio_bins"] == 128 and meta["data"]["dataset"] == "l2l"
+    assert meta["best_val_ce"] < meta["val"][-1]["unigram_ce"]  # beats the class-frequency predictor
+    out = stream_agent(model, clip, "listener", ProtocolConfig(context=1)).motion
+    assert out.shape == (60, 56) and torch.isfinite(torch.as_tensor(out)).all()

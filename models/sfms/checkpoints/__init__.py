@@ -1,1 +1,6 @@
-"""Shipped SFMS checkpoint (package data): ``sfms-tiny.pt``, the tiny tokenizer + predictor."""
+"""Shipped SFMS checkpoints (package data), tiny tokenizer + predictor each:
+
+- ``sfms-tiny.pt``: trained on the embedded corpus (speech = log-mel of the waveform, 32 bins);
+- ``sfms-tiny-l2l.pt``: trained on the embedded corpus written in the Learning2Listen layout (speech =
+  the layout's shipped 128-bin mel rows, 4 per frame, at 30 fps).
+"""
