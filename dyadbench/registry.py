@@ -76,7 +76,8 @@ DATASETS.add("synthetic", "dyadbench.datasets.synthetic:open_split",
 DATASETS.add("dualtalk", "dyadbench.datasets.dualtalk:open_split",
              "DualTalk folders train/ test/ ood/ with <clip>_speaker{1,2}.{wav,npz}")
 DATASETS.add("l2l", "dyadbench.datasets.l2l:open_split",
-             "Learning2Listen per-host train/ test/ arrays (64-frame windows, 30 fps)")
+             "Learning2Listen per-host train/ test/ arrays (64-frame windows, 30 fps, speaker mel rows; "
+             "the listener is generated and scored with the l2l suite)")
 DATASETS.add("react", "dyadbench.datasets.react:open_split",
              "REACT 2023/2024 layout: split csv, Emotion csv, 3D_FV npy, neighbour matrix")
 DATASETS.add("gaze", "dyadbench.datasets.gaze:open_split",
