@@ -3,9 +3,9 @@
 :func:`check_causal` streams a clip twice through fresh models from ``model_factory`` — once as is and
 once with every input after turn t replaced (both participants' motion, speech and speech features:
 seeded Gaussian noise at a different scale and offset) — and requires the outputs of turns 0..t to be
-identical. For a model that is not an oracle the agent's ground-truth motion is replaced over the whole clip as well
-(after its seed window, ``ModelInfo.seed_frames``): the protocol never hands it to such a model, so
-nothing may change. Every model's tests call this.
+identical. For a model that is not an oracle the agent's ground-truth motion is replaced over the whole
+clip as well (after its seed window, ``ModelInfo.seed_frames``): the protocol never hands it to such a
+model, so nothing may change. Every model's tests call this.
 """
 
 from __future__ import annotations
