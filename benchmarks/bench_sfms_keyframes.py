@@ -7,7 +7,7 @@ Two dynamic arms per k: Algorithm 1 and top-k exactly as published (suppression 
 neighbour suppression (``suppression_radius`` r, default ⌊T/2k⌋), which keeps top-k of a temporally
 smooth score from picking adjacent frames.
 
-    python benchmarks/bench_sfms_keyframes.py --jobs 2              # k = 3, 7, 10; ~30 min; writes the table
+    python benchmarks/bench_sfms_keyframes.py --jobs 2              # k = 3, 7, 10; ~1 h; writes the table
     python benchmarks/bench_sfms_keyframes.py --steps 100 --clips 50 --out /tmp/t.md   # quick look
 
 The naive references in the same run are the static (uniform i·⌊T/k⌋) arm at each k and the dense
@@ -200,7 +200,8 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
         f"--samples {samples} --radius {radius} --levels {levels} --clips {clips} --test-windows {test_windows} "
         f"--seed {seed} --jobs {jobs}`",
         "",
-        f"Tiny tokenizer (width 64, one layer per stack), FSQ levels [{levels}] ({codes} codes) for every arm, "
+        f"Tiny tokenizer (width 64, one layer per stack), FSQ levels [{levels}] ({codes} codes) for every arm of the "
+        "first table, "
         f"{steps} steps × batch {batch}, peak lr {lr:g} (scorer {lr / 2:g}), S = {samples} Gumbel samples for the "
         f"dynamic arms, seed {seed}; trained on the first {clips} synthetic train dialogues (both participants), "
         f"scored on {rows[arms[0]]['n_test']} non-overlapping 48-frame windows of the synthetic test split in eval "
