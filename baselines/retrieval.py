@@ -149,10 +149,10 @@ class NearestTurnRetrieval(StreamingModel, OfflineModel):
         self._ctx = ctx
 
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        ctx, feats = self._ctx, turn.user_speech_features
-        current = None if feats is None else feats[-(feats.shape[0] // (turn.history_turns + 1)):][None]
-        return self._retrieve(turn.current_user_motion[None], turn.current_user_audio[None], current,
-                              ctx.sample_rate, ctx.fps, f"{ctx.clip_id}_{ctx.user}")[0]
+        ctx, feats = self._ctx, turn.current_user_speech_features
+        return self._retrieve(turn.current_user_motion[None], turn.current_user_audio[None],
+                              None if feats is None else feats[None], ctx.sample_rate, ctx.fps,
+                              f"{ctx.clip_id}_{ctx.user}")[0]
 
     def predict_clip(self, ctx: StreamContext, user_motion: np.ndarray, user_audio: np.ndarray,
                      agent_audio: np.ndarray) -> np.ndarray:

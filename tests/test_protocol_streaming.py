@@ -146,6 +146,7 @@ def test_speech_features_are_sliced_like_the_motion():
     for t in spy.turns:
         f0, f1 = (t.turn - t.history_turns) * 25, (t.turn + 1) * 25
         np.testing.assert_array_equal(t.user_speech_features, feats[f0 * 4:f1 * 4])
+        np.testing.assert_array_equal(t.current_user_speech_features, feats[t.turn * 100:f1 * 4])
         assert not t.user_speech_features.flags.writeable and t.user_speech_features.base is None
         assert t.agent_speech_features is None
     stream_agent(spy, clip, "speaker2", ProtocolConfig(context=0))

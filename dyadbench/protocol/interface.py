@@ -108,6 +108,12 @@ class TurnInput:
     def current_agent_audio(self) -> np.ndarray:
         return self.agent_audio[-self.samples_per_turn:]
 
+    @property
+    def current_user_speech_features(self) -> np.ndarray | None:
+        """The current turn's rows of ``user_speech_features`` (None when the dataset ships none)."""
+        feats = self.user_speech_features
+        return None if feats is None else feats[-(feats.shape[0] // (self.history_turns + 1)):]
+
 
 class StreamingModel(abc.ABC):
     """A causal model: one turn of agent motion per call."""
