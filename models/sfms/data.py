@@ -21,6 +21,7 @@ import numpy as np
 from dyadbench.datasets.base import DyadicClip
 from dyadbench.errors import InputError
 from dyadbench.features.logmel import logmel_frames
+from dyadbench.protocol.streaming import feature_window
 from models.sfms.config import PredictorConfig
 
 STD_FLOOR = 1e-4
@@ -94,9 +95,8 @@ def directed_clips(clips: Iterable[DyadicClip], cfg: PredictorConfig
         t = clip.num_frames
         for listener in clip.agent_participants:
             speaker = clip.partner_of(listener.name)
-            r = speaker.feature_rows_per_frame
-            rows = speaker_rows(None if r is None else speaker.speech_features[: t * r], speaker.audio, t,
-                                clip.sample_rate, clip.fps, cfg, f"{clip.clip_id}_{speaker.name}")
+            rows = speaker_rows(feature_window(speaker, 0, t), speaker.audio, t, clip.sample_rate, clip.fps, cfg,
+                                f"{clip.clip_id}_{speaker.name}")
             rows = rows[: t * cfg.audio_rows_per_frame]
             if rows.shape[0] < t * cfg.audio_rows_per_frame:
                 raise InputError(f"{clip.clip_id}_{speaker.name}", f"speech shorter than the motion ({t} frames)")
