@@ -63,15 +63,17 @@ def auto_radius(window: int, k: int) -> int:
     return window // (2 * k)
 
 
-def equal_bits_levels(bits: float, window: int) -> int:
-    """L ≥ 2 codes per frame whose dense window (window·log2 L bits) is nearest ``bits``."""
-    return max(2, round(2.0 ** (bits / window)))
+def equal_bits_arm(k: int, codes: int, window: int = 48) -> tuple[str, int, int, tuple[int]]:
+    """The dense arm whose one-level FSQ has L ≥ 2 codes per frame, L the whole number nearest
+    2^(bits / window) for the bits of dynamic k (window·log2 L bits nearest them)."""
+    levels = max(2, round(2.0 ** (window_bits("dynamic", k, codes, window) / window)))
+    return ("dense", window, 0, (levels,))
 
 
-def frame_kmeans_mse(train: list[np.ndarray], test: np.ndarray, codes: int, seed: int,
-                     sample: int = 60_000) -> float:
-    """Test MSE when each frame is replaced by the nearest of ``codes`` k-means centroids of single train
-    frames (at most ``sample`` frames drawn with ``seed``; sklearn KMeans, one init)."""
+def frame_kmeans_mse(codes: int, seed: int, sample: int = 60_000) -> float:
+    """Test MSE of the worker's corpus when each frame is replaced by the nearest of ``codes`` k-means
+    centroids of single train frames (at most ``sample`` frames drawn with ``seed``; sklearn KMeans, one init)."""
+    train, test, _, _ = _CORPUS
     frames = np.concatenate(train)
     pick = np.random.default_rng(seed).choice(len(frames), size=min(sample, len(frames)), replace=False)
     km = KMeans(codes, n_init=1, random_state=seed, max_iter=100).fit(frames[pick])
@@ -129,10 +131,10 @@ def equal_bits_rows(rows: dict[tuple, dict], suppressed: list[tuple[int, int]], 
     out = []
     for k, radius in suppressed:
         sup, sta = rows["dynamic", k, radius, fsq], rows["static", k, 0, fsq]
-        levels = (equal_bits_levels(sup["bits"], 48),)
-        dense = rows["dense", 48, 0, levels]
+        arm = equal_bits_arm(k, math.prod(fsq))
+        dense = rows[arm]
         out.append(f"| {k} | {sup['bits']:.0f} | {sup['mse_z']:.4f} | {sta['bits']:.0f} | {sta['mse_z']:.4f} | "
-                   f"{levels[0]} | {dense['bits']:.0f} | {dense['mse_z']:.4f} | {dense['mse_z'] / sup['mse_z']:.3f} |")
+                   f"{arm[3][0]} | {dense['bits']:.0f} | {dense['mse_z']:.4f} | {dense['mse_z'] / sup['mse_z']:.3f} |")
     return out
 
 
@@ -179,19 +181,19 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
     for k, r in suppressed:
         arms += [("static", k, 0, fsq), ("dynamic", k, 0, fsq), ("dynamic", k, r, fsq)]
     for k, _ in suppressed:
-        equal = ("dense", 48, 0, (equal_bits_levels(window_bits("dynamic", k, codes, 48), 48),))
+        equal = equal_bits_arm(k, codes)
         arms += [equal] if equal not in arms else []
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=jobs, initializer=_load_corpus_once,
                              initargs=(clips, test_windows, threads)) as pool:
         futures = [pool.submit(run_arm, arm, common, seed) for arm in arms]
+        kmeans_future = pool.submit(frame_kmeans_mse, codes, seed)
         rows = {}
         for arm, future in zip(arms, futures):
             row = rows[arm] = future.result()
             click.echo(f"{row['mode']:8s} k={row['k']:2d} r={row['radius']} levels={row['levels']}  MSE z "
                        f"{row['mse_z']:.4f}  raw {row['mse_raw']:.5f}  ({row['seconds']:.0f} s)", err=True)
-        train, test, _, _ = load_corpus(clips, test_windows)
-        kmeans = frame_kmeans_mse(train, test, codes, seed)
+        kmeans = kmeans_future.result()
     wall = time.perf_counter() - t0
     lines = [
         "# SFMS keyframes: dynamic vs static vs dense (Tables III–IV on the embedded corpus)",
