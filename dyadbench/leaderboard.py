@@ -46,9 +46,8 @@ def suite_info(suite: str) -> tuple[list[str], dict[str, float], dict[str, bool 
         return keys, dict(m.SCALE), dict(m.HIGHER_IS_BETTER)
     if suite == "l2l":
         m = importlib.import_module("dyadbench.metrics.l2l")
-        components = m.L2LParams().components
-        keys = [f"{name}_{c}" for name in m.METRIC_NAMES for c in components]
-        better = {f"{name}_{c}": m.HIGHER_IS_BETTER[name] for name in m.METRIC_NAMES for c in components}
+        keys = m.keys(m.L2LParams())
+        better = {k: m.HIGHER_IS_BETTER[k.rsplit("_", 1)[0]] for k in keys}
         return keys, {k: 1.0 for k in keys}, better
     return [], {}, {}
 
