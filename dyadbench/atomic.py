@@ -2,11 +2,16 @@
 
 Data is written to a temporary file in the destination folder and moved into place with
 :func:`os.replace`, which is atomic on POSIX and Windows file systems.
+
+Files and folders get the mode a plain ``open()``/``mkdir()`` would give them (``0o666`` or
+``0o777`` less the process umask), not the private ``0o600``/``0o700`` of :mod:`tempfile`, so
+results and leaderboards are readable by whoever could read a file the user wrote by hand.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
 import io
 import json
 import os
@@ -17,15 +22,49 @@ from typing import Any, Callable, Iterator
 import numpy as np
 
 
+@functools.lru_cache(maxsize=1)
+def umask() -> int:
+    """The process umask, read once (it is process-global and can only be read by setting it)."""
+    old = os.umask(0)
+    os.umask(old)
+    return old
+
+
+def file_mode() -> int:
+    """The mode ``open(path, "w")`` gives a new file: ``0o666`` less the umask."""
+    return 0o666 & ~umask()
+
+
+def dir_mode() -> int:
+    """The mode ``mkdir`` gives a new folder: ``0o777`` less the umask."""
+    return 0o777 & ~umask()
+
+
+def make_temp_dir(parent: str | Path, prefix: str) -> Path:
+    """Create a fresh folder in ``parent`` (created if missing) with the mode ``mkdir`` would give.
+
+    Use it for output built aside and later moved into place with :func:`os.replace`.
+    """
+    parent = Path(parent)
+    parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=prefix, dir=parent))
+    os.chmod(tmp, dir_mode())
+    return tmp
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path) -> Iterator[Path]:
-    """Yield a temporary path beside ``path``; on success move it onto ``path``, else delete it."""
+    """Yield a temporary path beside ``path``; on success move it onto ``path``, else delete it.
+
+    The temporary file (hence ``path``) has :func:`file_mode`.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
+        os.chmod(tmp_path, file_mode())
         yield tmp_path
         os.replace(tmp_path, path)
     finally:
