@@ -13,13 +13,14 @@ from __future__ import annotations
 import contextlib
 import functools
 import io
-import json
 import os
 import tempfile
 from pathlib import Path
 from typing import Any, Callable, Iterator
 
 import numpy as np
+
+from dyadbench import strict_json
 
 
 @functools.lru_cache(maxsize=1)
@@ -82,19 +83,9 @@ def write_text(path: str | Path, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
 
 
-def _json_default(obj: Any) -> Any:
-    if isinstance(obj, np.generic):
-        return obj.item()
-    if isinstance(obj, np.ndarray):
-        return obj.tolist()
-    if isinstance(obj, Path):
-        return str(obj)
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
-
-
 def to_json(obj: Any) -> str:
-    """Serialise with numpy scalars/arrays and paths converted; NaN is written as ``NaN``."""
-    return json.dumps(obj, indent=2, sort_keys=False, default=_json_default) + "\n"
+    """Strict, indented JSON (NaN/inf as ``null``, exact values kept: see :mod:`dyadbench.strict_json`)."""
+    return strict_json.dumps(obj)
 
 
 def write_json(path: str | Path, obj: Any) -> Path:

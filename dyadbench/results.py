@@ -12,7 +12,6 @@ of the leaderboards.
 
 from __future__ import annotations
 
-import json
 import math
 import platform
 import subprocess
@@ -24,7 +23,7 @@ from typing import Iterable, get_type_hints
 
 import pandas as pd
 
-from dyadbench import __version__, atomic
+from dyadbench import __version__, atomic, strict_json
 from dyadbench.errors import InputError
 
 SCHEMA = "dyadbench.eval-result/1"
@@ -170,13 +169,17 @@ def _numbers(value: object, source: str | Path, key: str) -> dict[str, float]:
 
 
 def load_result(path: str | Path) -> EvalResult:
-    """Read one result file; InputError naming the file for unreadable or malformed content."""
+    """Read one result file; InputError naming the file for unreadable or malformed content.
+
+    Files are strict JSON with non-finite values recorded aside (:mod:`dyadbench.strict_json`); older
+    files with bare ``NaN`` load to the same values.
+    """
     path = Path(path)
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = strict_json.loads(path.read_text(encoding="utf-8"))
     except FileNotFoundError:
         raise InputError(path, "result file not found") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, ValueError) as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
         raise InputError(path, f"not readable JSON ({exc})") from None
     return EvalResult.from_dict(data, path)
 
