@@ -16,7 +16,7 @@ import io
 import os
 import tempfile
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
@@ -81,6 +81,15 @@ def write_bytes(path: str | Path, data: bytes) -> Path:
 
 def write_text(path: str | Path, text: str) -> Path:
     return write_bytes(path, text.encode("utf-8"))
+
+
+def write_texts(files: Mapping[Path, str]) -> list[Path]:
+    """Write several text files as one set: every temporary file is complete before the first is moved
+    into place, so an error while writing any of them leaves all of them as they were."""
+    with contextlib.ExitStack() as stack:
+        for path, text in files.items():
+            stack.enter_context(atomic_path(path)).write_bytes(text.encode("utf-8"))
+    return [Path(p) for p in files]
 
 
 def to_json(obj: Any) -> str:

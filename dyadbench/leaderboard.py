@@ -9,6 +9,8 @@
   among non-oracle rows of the same source/dataset/split/protocol/context and ``items`` (predictions
   scored; empty for published rows). Oracle rows are kept, marked and never ranked.
 - :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold).
+- :func:`table_texts` / :func:`write_tables`: one build's tables, written as a set into a folder that
+  afterwards holds exactly them (tables of suites no longer present are removed).
 
 Published rows are stored as printed (scaled) in a CSV with columns ``source, reference, model,
 dataset, split, protocol, context`` and one column per metric key (e.g. ``leaderboards/paper_timar.csv``);
@@ -17,7 +19,9 @@ their raw values are the printed values divided by the scale.
 
 from __future__ import annotations
 
+import csv
 import importlib
+import io
 import math
 from pathlib import Path
 from typing import Iterable
@@ -25,6 +29,7 @@ from typing import Iterable
 import numpy as np
 import pandas as pd
 
+from dyadbench import atomic
 from dyadbench.errors import InputError
 from dyadbench.motion import LAYOUTS
 from dyadbench.protocol.config import variant_label
@@ -57,32 +62,81 @@ def _component(metric: str) -> str:
     return tail if tail in _COMPONENTS else ""
 
 
+_PAPER_TEXT = ("source", "reference", "model", "dataset", "split", "protocol")
+
+
 def paper_rows(path: str | Path, suite: str = "dualtalk") -> pd.DataFrame:
-    """Long rows of a transcribed published table (see module docstring)."""
+    """Long rows of a transcribed published table (see module docstring).
+
+    An empty cell is a value the table does not print (NaN; for ``context``: no context). InputError
+    naming the file, line and column for an empty file, missing, repeated or unknown columns, a ragged
+    line, no rows, an empty text cell, a context that is not a whole number or a value that is not a
+    finite number.
+    """
     path = Path(path)
-    try:
-        wide = pd.read_csv(path, dtype={"context": "Int64"}, keep_default_na=True)
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"not a readable published-rows CSV ({exc})") from None
-    needed = {"source", "reference", "model", "dataset", "split", "protocol", "context"}
-    if not needed <= set(wide.columns):
-        raise InputError(path, f"missing columns {', '.join(sorted(needed - set(wide.columns)))}")
+    header, lines = _read_csv(path)
+    if not lines:
+        raise InputError(path, "no published rows below the header")
+    needed = set(_PAPER_TEXT) | {"context"}
+    if not needed <= set(header):
+        raise InputError(path, f"missing columns {', '.join(sorted(needed - set(header)))}")
     _, scale, better = suite_info(suite)
-    metrics = [c for c in wide.columns if c not in needed]
+    metrics = [c for c in header if c not in needed]
     unknown = [m for m in metrics if m not in scale]
     if unknown:
         raise InputError(path, f"unknown {suite} metric columns: {', '.join(unknown)}")
     rows = []
-    for _, r in wide.iterrows():
+    for line, cells in lines:
+        r = dict(zip(header, cells))
+        for column in _PAPER_TEXT:
+            if not r[column].strip():
+                raise InputError(path, f"line {line}, column {column!r}: empty")
+        context = _cell_number(path, line, "context", r["context"], int)
         for metric in metrics:
-            value = float(r[metric])
+            value = _cell_number(path, line, metric, r[metric], float)
             rows.append({"source": r["source"], "model": r["model"], "oracle": False, "dataset": r["dataset"],
-                         "split": r["split"], "protocol": r["protocol"],
-                         "context": None if pd.isna(r["context"]) else int(r["context"]), "suite": suite,
+                         "split": r["split"], "protocol": r["protocol"], "context": context, "suite": suite,
                          "metric": metric, "component": _component(metric), "raw": value / scale[metric],
                          "scaled": value, "scale": scale[metric], "higher_is_better": better.get(metric),
                          "reference": f"{r['reference']} ({path.name})"})
     return pd.DataFrame(rows)
+
+
+def _read_csv(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """Header and (line number, cells) of a CSV file; InputError if unreadable, empty, with a repeated
+    column or a line whose number of cells differs from the header's."""
+    try:
+        with path.open(newline="", encoding="utf-8") as f:
+            reader = csv.reader(f)
+            records = [(reader.line_num, cells) for cells in reader]
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(path, f"not a readable published-rows CSV ({exc})") from None
+    records = [(n, cells) for n, cells in records if cells]  # blank lines
+    if not records:
+        raise InputError(path, "empty file (expected a header line and published rows)")
+    (_, header), lines = records[0], records[1:]
+    repeated = sorted({c for c in header if header.count(c) > 1})
+    if repeated:
+        raise InputError(path, f"repeated columns {', '.join(repeated)}")
+    for n, cells in lines:
+        if len(cells) != len(header):
+            raise InputError(path, f"line {n} has {len(cells)} cells, the header has {len(header)}")
+    return header, lines
+
+
+def _cell_number(path: Path, line: int, column: str, text: str, kind: type) -> float | int | None:
+    """A numeric cell: empty -> None (context) or NaN (metric); else a finite ``kind`` or InputError."""
+    text = text.strip()
+    if not text:
+        return None if kind is int else math.nan
+    try:
+        value = kind(text)
+    except ValueError:
+        value = None
+    if value is None or not math.isfinite(value):
+        what = "a whole number" if kind is int else "a finite number"
+        raise InputError(path, f"line {line}, column {column!r}: {text!r} is not {what}")
+    return value
 
 
 def long_table(result_paths: Iterable[str | Path], paper: Iterable[str | Path] = ()) -> pd.DataFrame:
@@ -199,3 +253,39 @@ def _escape(text: str) -> str:
     for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#")):
         text = text.replace(a, b)
     return text
+
+
+def table_texts(long: pd.DataFrame, latex: bool = False) -> dict[str, str]:
+    """Every table of one build by file name: ``long.csv``, ``<suite>_wide.csv`` per suite and, with
+    ``latex``, ``<suite>_wide.tex``. Built whole in memory, so a failure writes nothing."""
+    tables = {"long.csv": _csv(long)}
+    for suite in sorted(set(long["suite"])):
+        wide = wide_table(long, suite)
+        tables[f"{suite}_wide.csv"] = _csv(wide)
+        if latex:
+            tables[f"{suite}_wide.tex"] = latex_table(wide, suite)
+    return tables
+
+
+#: The names of the tables a build writes; files of the output folder matching them belong to builds.
+TABLE_NAMES = ("long.csv", "*_wide.csv", "*_wide.tex")
+
+
+def write_tables(out: str | Path, tables: dict[str, str]) -> tuple[list[Path], list[Path]]:
+    """Write one build's tables into ``out`` as a set and remove earlier builds' tables that are not in
+    it (only files named like :data:`TABLE_NAMES`), so ``out`` holds exactly this build's tables.
+
+    Returns (written, removed).
+    """
+    out = Path(out)
+    written = atomic.write_texts({out / name: text for name, text in tables.items()})
+    stale = sorted({p for pattern in TABLE_NAMES for p in out.glob(pattern) if p.is_file()} - set(written))
+    for path in stale:
+        path.unlink()
+    return written, stale
+
+
+def _csv(frame: pd.DataFrame) -> str:
+    buf = io.StringIO()
+    frame.to_csv(buf, index=False, float_format="%.10g")
+    return buf.getvalue()

@@ -185,11 +185,17 @@ def load_result(path: str | Path) -> EvalResult:
 
 
 def result_files(paths: Iterable[str | Path]) -> list[Path]:
-    """Expand folders to the ``*.json`` files below them (sorted); files are taken as given."""
+    """Expand folders to the ``*.json`` files below them (sorted); files are taken as given.
+
+    A folder without any ``*.json`` file is an InputError naming it (nothing to build a table from).
+    """
     out: list[Path] = []
     for p in map(Path, paths):
         if p.is_dir():
-            out.extend(sorted(p.rglob("*.json")))
+            found = sorted(p.rglob("*.json"))
+            if not found:
+                raise InputError(p, "no result files (*.json) in this folder")
+            out.extend(found)
         elif p.is_file():
             out.append(p)
         else:

@@ -2,23 +2,14 @@
 
 from __future__ import annotations
 
-import io
 from pathlib import Path
 
 import click
-import pandas as pd
 
-from dyadbench import atomic
-from dyadbench.leaderboard import latex_table, long_table, wide_table
+from dyadbench.leaderboard import long_table, table_texts, write_tables
 
 #: Published rows shipped with dyadbench (transcribed from the TIMAR paper, Tables 1 and 2).
 PAPER_ROWS = Path(__file__).resolve().parents[2] / "leaderboards" / "paper_timar.csv"
-
-
-def _csv(frame: pd.DataFrame) -> str:
-    buf = io.StringIO()
-    frame.to_csv(buf, index=False, float_format="%.10g")
-    return buf.getvalue()
 
 
 @click.command()
@@ -34,7 +25,8 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
     """Build leaderboards from RESULTS (result files or folders; default: results/).
 
     \b
-    Writes (atomically):
+    Writes (atomically, as one set; tables of earlier builds that are not part of this one, e.g. of a
+    suite no longer present or .tex without --latex, are removed, so OUT holds exactly this build):
       OUT/long.csv            one row per source/model/dataset/split/protocol/context/metric,
                               raw and publication-scaled values, oracle flag, source=dyadbench|paper
       OUT/<suite>_wide.csv    the paper table layout (scaled as printed), ranked by the first column;
@@ -42,17 +34,15 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
       OUT/<suite>_wide.tex    with --latex
     Numbers come only from result files written by `dyadbench eval` / `dyadbench sweep` and from the
     transcribed published rows.
+    A RESULTS folder without result files is an error (nothing is written).
     """
     sources = list(results) or [Path("results")]
     papers = [] if no_paper else (list(paper) or ([PAPER_ROWS] if PAPER_ROWS.is_file() else []))
     long = long_table(sources, papers)
-    written = [atomic.write_text(out / "long.csv", _csv(long))]
-    for suite in sorted(set(long["suite"])):
-        wide = wide_table(long, suite)
-        written.append(atomic.write_text(out / f"{suite}_wide.csv", _csv(wide)))
-        if latex:
-            written.append(atomic.write_text(out / f"{suite}_wide.tex", latex_table(wide, suite)))
+    written, removed = write_tables(out, table_texts(long, latex))
     n_dyad = int((long["source"] == "dyadbench").sum())
     click.echo(f"{n_dyad} dyadbench rows, {len(long) - n_dyad} published rows")
     for path in written:
         click.echo(f"wrote {path}")
+    for path in removed:
+        click.echo(f"removed {path} (not part of this build)")
