@@ -27,3 +27,7 @@ class InputError(DyadbenchError, ValueError):
 
 class ConfigError(DyadbenchError, ValueError):
     """An option, name or parameter is invalid (unknown model, bad context length, ...)."""
+
+
+class OutputError(DyadbenchError):
+    """A finished result could not be written where asked; the message says where it was kept instead."""
