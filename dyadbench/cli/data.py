@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from dyadbench.atomic import to_json
+from dyadbench.cli.options import SEED
 from dyadbench.datasets.layouts import LAYOUTS, get_layout
 
 LAYOUT_HELP = "Dataset layout: " + "; ".join(f"{name} = {layout.summary}" for name, layout in LAYOUTS.items())
@@ -37,7 +38,7 @@ def data() -> None:
 @click.option("--clips", "clips", default=None, type=click.IntRange(min=1),
               help="Number of dialogues (sessions). Default: the split's standard size "
                    "(dualtalk: test 533, ood 377, train 800). Clip i is the same whatever the count.")
-@click.option("--seed", default=0, show_default=True, type=int,
+@click.option("--seed", default=0, show_default=True, type=SEED,
               help="Generator seed; the same seed writes byte-identical files.")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (the files do not depend on it).")

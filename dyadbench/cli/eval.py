@@ -11,6 +11,7 @@ from typing import Callable
 import click
 
 from dyadbench import atomic
+from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError
 from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
@@ -45,7 +46,7 @@ def data_options(f: Callable) -> Callable:
 def protocol_options(f: Callable) -> Callable:
     """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights."""
     options = [
-        click.option("--turn-seconds", default=1.0, show_default=True, type=float,
+        click.option("--turn-seconds", default=1.0, show_default=True, type=POSITIVE,
                      help="Turn length in seconds (must hold whole frames and samples; 1 s = 25 frames)."),
         click.option("--tail", default="truncate", show_default=True, type=click.Choice(TAILS),
                      help="Frames after the last whole turn: truncate (published TIMAR numbers) or "
@@ -53,10 +54,10 @@ def protocol_options(f: Callable) -> Callable:
         click.option("--history-agent", default="masked", show_default=True, type=click.Choice(HISTORY_AGENT),
                      help="Agent motion in history turns: masked (TIMAR's published runs) or the model's "
                           "own earlier outputs."),
-        click.option("--seed", default=0, show_default=True, type=int,
+        click.option("--seed", default=0, show_default=True, type=SEED,
                      help="Run seed: per-stream model seeds derive from (seed, clip, agent); also seeds the "
                           "randomised metrics. Recorded in the result."),
-        click.option("--cfg-scale", default=1.0, show_default=True, type=float,
+        click.option("--cfg-scale", default=1.0, show_default=True, type=NON_NEGATIVE,
                      help="Classifier-free guidance scale for models that support it (1 = off)."),
         click.option("--weights", default=None, type=click.Path(exists=True, dir_okay=False, path_type=Path),
                      help="Checkpoint for models with weights (default: the model's shipped checkpoint)."),

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from dyadbench.cli.options import SEED
 from dyadbench.registry import SUITES
 
 
@@ -27,7 +28,7 @@ from dyadbench.registry import SUITES
               help="Worker processes for per-clip metrics.")
 @click.option("--strict", is_flag=True,
               help="Exit non-zero when any expected prediction is missing or excluded (NaN, bad shape).")
-@click.option("--seed", default=0, show_default=True, type=int,
+@click.option("--seed", default=0, show_default=True, type=SEED,
               help="Seed for the randomised metrics (diversity index draws); recorded in the result.")
 def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None, jobs: int,
           strict: bool, seed: int) -> None:

@@ -15,6 +15,7 @@ from pathlib import Path
 import click
 
 from dyadbench.cli.eval import data_options, open_splits, protocol_options, resolve_dataset, run_one, summary
+from dyadbench.cli.options import IntList
 from dyadbench.errors import ConfigError
 from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.registry import MODELS
@@ -44,7 +45,8 @@ def _csv(value: str, what: str) -> list[str]:
 @click.option("--models", required=True,
               help="Comma-separated registered models, e.g. zero,mean-frame,oracle (see `dyadbench models`).")
 @click.option("--splits", default="test,ood", show_default=True, help="Comma-separated splits.")
-@click.option("--contexts", default="0,3,7", show_default=True, help="Comma-separated history lengths n.")
+@click.option("--contexts", "context_list", default="0,3,7", show_default=True, type=IntList(min=0),
+              help="Comma-separated history lengths n (each >= 0).")
 @protocol_options
 @data_options
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("results"),
@@ -57,10 +59,10 @@ def _csv(value: str, what: str) -> list[str]:
               help="Keep per-clip metrics in each result file. --no-per-clip keeps the mean metrics only "
                    "(small files, e.g. results committed beside the leaderboards).")
 @click.option("--force", is_flag=True, help="Re-run and overwrite runs whose result file exists.")
-def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: str, history_agent: str, seed: int,
-          cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None, clips: int | None,
-          jobs: int, threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool,
-          force: bool) -> None:
+def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float, tail: str, history_agent: str,
+          seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
+          clips: int | None, jobs: int, threads: int | None, out: Path, keep_predictions: Path | None,
+          per_clip: bool, force: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
     \b
@@ -72,10 +74,6 @@ def sweep(models: str, splits: str, contexts: str, turn_seconds: float, tail: st
     names = _csv(models, "models")
     for name in names:
         MODELS.get(name)
-    try:
-        context_list = [int(c) for c in _csv(contexts, "contexts")]
-    except ValueError:
-        raise ConfigError(f"--contexts must be comma-separated integers, got {contexts!r}") from None
     dataset_name = resolve_dataset(data, dataset)
     for split in _csv(splits, "splits"):
         source, train = open_splits(data, dataset_name, split)

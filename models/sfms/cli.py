@@ -15,6 +15,7 @@ import torch
 from tqdm import tqdm
 
 from dyadbench import atomic
+from dyadbench.cli.options import COUNT, SEED, real
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.registry import DATASETS
@@ -56,6 +57,8 @@ def load_split_clips(dataset: str, root: Path | None, clips: int | None, val_fra
         raise ConfigError(f"need at least 2 training clips, {dataset}/train has {len(ids)}")
     order = seeded_rng(seed, "sfms-val").permutation(len(ids))
     n_val = max(1, int(round(val_frac * len(ids))))
+    if n_val >= len(ids):
+        raise ConfigError(f"--val-frac {val_frac} holds out all {len(ids)} clips; none is left to train on")
     val_ids = sorted(ids[i] for i in order[:n_val])
     train_ids = [i for i in ids if i not in set(val_ids)]
     describe = {**source.describe(), "clips_used": len(ids), "val_clips": val_ids}
@@ -77,15 +80,16 @@ def _common(f):
                      help="Registered dataset to train on (`dyadbench datasets`)."),
         click.option("--root", type=click.Path(path_type=Path), default=None,
                      help="Dataset root (default: the dataset's own default, e.g. the embedded corpus cache)."),
-        click.option("--clips", type=int, default=None, help="Use only the first N train clips (quick runs)."),
-        click.option("--val-frac", type=float, default=0.1, show_default=True,
+        click.option("--clips", type=click.IntRange(min=2), default=None,
+                     help="Use only the first N train clips (quick runs; at least 2: one is held out)."),
+        click.option("--val-frac", type=real(0, 1, min_open=True, max_open=True), default=0.1, show_default=True,
                      help="Fraction of train clips held out for validation / best-checkpoint selection."),
-        click.option("--val-windows", type=int, default=512, show_default=True,
+        click.option("--val-windows", type=COUNT, default=512, show_default=True,
                      help="Validation windows scored at each validation (best-checkpoint selection)."),
-        click.option("--steps", type=int, default=None, help="Training steps (default: the preset's)."),
-        click.option("--batch", type=int, default=None, help="Windows per step (default: the preset's)."),
-        click.option("--seed", type=int, default=0, show_default=True, help="Seed of every random choice."),
-        click.option("--threads", type=int, default=1, show_default=True,
+        click.option("--steps", type=COUNT, default=None, help="Training steps (default: the preset's)."),
+        click.option("--batch", type=COUNT, default=None, help="Windows per step (default: the preset's)."),
+        click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of every random choice."),
+        click.option("--threads", type=COUNT, default=1, show_default=True,
                      help="torch CPU threads (1 is fastest on a shared, busy CPU)."),
         click.option("--device", default="cpu", show_default=True, help="cpu or cuda (one GPU per process)."),
         click.option("--out", type=click.Path(path_type=Path), required=True, help="Checkpoint file to write."),
@@ -107,7 +111,7 @@ def _write_log(out: Path, history: dict) -> Path:
 
 @click.command("sfms-tokenizer")
 @_common
-@click.option("--keyframes", type=int, default=None, help="k keyframes per 48-frame window (D11).")
+@click.option("--keyframes", type=COUNT, default=None, help="k keyframes per 48-frame window (D11).")
 @click.option("--keyframe-mode", type=click.Choice(["dynamic", "static", "dense"]), default=None,
               help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
 @click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")

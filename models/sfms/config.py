@@ -50,7 +50,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from dyadbench.errors import ConfigError
-from dyadbench.training.config import check_field_types
+from dyadbench.training.config import (BELOW_ONE, NON_NEGATIVE, POSITIVE, PROBABILITY, bounded,
+                                       check_field_domains, check_field_types)
 from dyadbench.training.config import config_from_dict as from_dict  # noqa: F401  (re-exported)
 from dyadbench.training.config import config_to_dict as to_dict  # noqa: F401  (re-exported)
 
@@ -76,6 +77,7 @@ PREDICTOR_CHOICES = {
 
 def _check_choices(cfg: Any, choices: dict[str, tuple[str, ...]]) -> None:
     check_field_types(cfg)
+    check_field_domains(cfg)
     for name, allowed in choices.items():
         value = getattr(cfg, name)
         if value not in allowed:
@@ -86,50 +88,50 @@ def _check_choices(cfg: Any, choices: dict[str, tuple[str, ...]]) -> None:
 class TokenizerConfig:
     """Stage 1: keyframe scorer + Gumbel top-k + keyframe quantiser + inpainter (spec §2)."""
 
-    dim: int = 56  # motion dims d (layout-agnostic)
-    window: int = 48  # T
-    width: int = 256
-    heads: int = 8
-    ffn: int = 1024
-    dropout: float = 0.1
-    pe_dim: int = 64  # D10: concatenated PE width
-    conv_kernel: int = 3  # D8
-    scorer_layers: int = 2  # D8
-    keyframe_layers: int = 3
-    transition_layers: int = 3
-    decoder_layers: int = 2
+    dim: int = bounded(56, POSITIVE)  # motion dims d (layout-agnostic)
+    window: int = bounded(48, POSITIVE)  # T
+    width: int = bounded(256, POSITIVE)
+    heads: int = bounded(8, POSITIVE)
+    ffn: int = bounded(1024, POSITIVE)
+    dropout: float = bounded(0.1, PROBABILITY)
+    pe_dim: int = bounded(64, POSITIVE)  # D10: concatenated PE width
+    conv_kernel: int = bounded(3, POSITIVE)  # D8
+    scorer_layers: int = bounded(2, NON_NEGATIVE)  # D8
+    keyframe_layers: int = bounded(3, NON_NEGATIVE)
+    transition_layers: int = bounded(3, NON_NEGATIVE)
+    decoder_layers: int = bounded(2, NON_NEGATIVE)
     scorer_pe: str = "sinusoidal"  # D31
-    keyframes: int = 7  # D11: k
+    keyframes: int = bounded(7, POSITIVE)  # D11: k
     keyframe_mode: str = "dynamic"  # Table III arms: dynamic (learned top-k) | static (uniform) | dense
     mask_sharing: str = "frame"  # D1
     quantizer: str = "fsq"  # fsq | vq
     fsq_levels: tuple[int, ...] = (8, 6, 5)  # D10
-    vq_codes: int = 256
-    vq_codebook_weight: float = 1.0  # D9
-    vq_commit_weight: float = 1.0  # D9
-    topk_eps: float = 1e-10
-    suppression_radius: int = 0  # D32: frames suppressed on each side of a keyframe pick (0 = as published)
-    gumbel_samples: int = 4  # D7: S
+    vq_codes: int = bounded(256, POSITIVE)
+    vq_codebook_weight: float = bounded(1.0, NON_NEGATIVE)  # D9
+    vq_commit_weight: float = bounded(1.0, NON_NEGATIVE)  # D9
+    topk_eps: float = bounded(1e-10, POSITIVE)
+    suppression_radius: int = bounded(0, NON_NEGATIVE)  # D32: frames suppressed each side of a pick (0 = as published)
+    gumbel_samples: int = bounded(4, POSITIVE)  # D7: S
     recon_on: str = "all"  # D7
-    kf_loss_weight: float = 1.0  # D3
-    mask_loss_weight: float = 0.1  # D2: α
+    kf_loss_weight: float = bounded(1.0, NON_NEGATIVE)  # D3
+    mask_loss_weight: float = bounded(0.1, NON_NEGATIVE)  # D2: α
     mask_target: str = "best_sample"  # D2
-    warmup_frac: float = 0.1  # D4
-    dense_aux_weight: float = 0.0  # D4
-    tau_start: float = 1.0  # D6
-    tau_min: float = 0.3  # D6
-    tau_anneal_frac: float = 0.6  # D6
-    lr_main: float = 2e-4  # D5
-    lr_scorer: float = 1e-4  # D5
-    lr_min: float = 1e-6
-    betas: tuple[float, float] = (0.9, 0.98)
-    weight_decay: float = 0.01
-    grad_clip: float = 1.0
-    scorer_update_every: int = 1  # D5: 1 = both optimisers step every iteration
-    steps: int = 20_000  # D28
-    batch: int = 256
-    val_every: int = 500
-    ema_decay: float = 0.0  # EMA of the weights for validation and the checkpoint (0 = off)
+    warmup_frac: float = bounded(0.1, PROBABILITY)  # D4
+    dense_aux_weight: float = bounded(0.0, NON_NEGATIVE)  # D4
+    tau_start: float = bounded(1.0, POSITIVE)  # D6
+    tau_min: float = bounded(0.3, POSITIVE)  # D6
+    tau_anneal_frac: float = bounded(0.6, PROBABILITY)  # D6
+    lr_main: float = bounded(2e-4, POSITIVE)  # D5
+    lr_scorer: float = bounded(1e-4, POSITIVE)  # D5
+    lr_min: float = bounded(1e-6, NON_NEGATIVE)
+    betas: tuple[float, float] = bounded((0.9, 0.98), BELOW_ONE)
+    weight_decay: float = bounded(0.01, NON_NEGATIVE)
+    grad_clip: float = bounded(1.0, POSITIVE)
+    scorer_update_every: int = bounded(1, POSITIVE)  # D5: 1 = both optimisers step every iteration
+    steps: int = bounded(20_000, POSITIVE)  # D28
+    batch: int = bounded(256, POSITIVE)
+    val_every: int = bounded(500, POSITIVE)
+    ema_decay: float = bounded(0.0, BELOW_ONE)  # EMA of the weights for validation and checkpoint (0 = off)
     normalisation: str = "zscore"  # D22
 
     def __post_init__(self) -> None:
@@ -138,8 +140,6 @@ class TokenizerConfig:
             raise ConfigError(f"keyframes must be in 1..window ({self.window}), got {self.keyframes}")
         if self.width % self.heads:
             raise ConfigError(f"width {self.width} is not divisible by heads {self.heads}")
-        if self.suppression_radius < 0:
-            raise ConfigError(f"suppression_radius must be >= 0, got {self.suppression_radius}")
         if any(level < 2 for level in self.fsq_levels):
             raise ConfigError(f"FSQ levels must be >= 2, got {self.fsq_levels}")
 
@@ -166,51 +166,49 @@ class TokenizerConfig:
 class PredictorConfig:
     """Stage 2: listening-head predictor over per-frame classes (spec §3)."""
 
-    past: int = 40
-    future: int = 8
-    width: int = 256
-    heads: int = 8
-    ffn: int = 1024
-    dropout: float = 0.1
-    speaker_layers: int = 2  # D25
-    audio_layers: int = 2
-    fusion_blocks: int = 2
-    listener_layers: int = 2
-    context_layers: int = 4
-    decoder_layers: int = 2
-    audio_bins: int = 128
-    audio_rows_per_frame: int = 4  # mel rows per motion frame (hop 10 ms at 25 fps)
-    audio_window_s: float = 0.025  # mel analysis window
+    past: int = bounded(40, POSITIVE)
+    future: int = bounded(8, POSITIVE)
+    width: int = bounded(256, POSITIVE)
+    heads: int = bounded(8, POSITIVE)
+    ffn: int = bounded(1024, POSITIVE)
+    dropout: float = bounded(0.1, PROBABILITY)
+    speaker_layers: int = bounded(2, NON_NEGATIVE)  # D25
+    audio_layers: int = bounded(2, NON_NEGATIVE)
+    fusion_blocks: int = bounded(2, NON_NEGATIVE)
+    listener_layers: int = bounded(2, NON_NEGATIVE)
+    context_layers: int = bounded(4, NON_NEGATIVE)
+    decoder_layers: int = bounded(2, NON_NEGATIVE)
+    audio_bins: int = bounded(128, POSITIVE)
+    audio_rows_per_frame: int = bounded(4, POSITIVE)  # mel rows per motion frame (hop 10 ms at 25 fps)
+    audio_window_s: float = bounded(0.025, POSITIVE)  # mel analysis window
     tokenise: str = "window"  # D12
     speaker_input: str = "continuous"  # D13
     speaker_span: str = "concurrent"  # D14
     keyframe_loss: str = "soft_dtw"  # D15
-    sdtw_gamma: float = 0.1  # D15
-    sdtw_weight: float = 1.0  # D15
+    sdtw_gamma: float = bounded(0.1, POSITIVE)  # D15
+    sdtw_weight: float = bounded(1.0, NON_NEGATIVE)  # D15
     class_weights: str = "group"  # D16
     sampling: str = "multinomial"  # D17
-    temperature: float = 1.0  # D17
-    top_k: int = 0  # D17: 0 = off
-    keyframe_cap: int | None = None  # D18
-    neutral_prob: float = 0.3  # D24
-    pre_start_prob: float = 0.05  # D24
+    temperature: float = bounded(1.0, POSITIVE)  # D17
+    top_k: int = bounded(0, NON_NEGATIVE)  # D17: 0 = off
+    keyframe_cap: int | None = bounded(None, POSITIVE)  # D18
+    neutral_prob: float = bounded(0.3, PROBABILITY)  # D24
+    pre_start_prob: float = bounded(0.05, PROBABILITY)  # D24
     emit: str = "last"  # D30
-    lr: float = 3e-4  # D28
-    lr_min: float = 1e-6
-    betas: tuple[float, float] = (0.9, 0.98)
-    weight_decay: float = 0.01
-    warmup_frac: float = 0.05
-    grad_clip: float = 1.0
-    steps: int = 20_000
-    batch: int = 256
-    ema_decay: float = 0.0  # EMA of the weights for validation and the checkpoint (0 = off)
+    lr: float = bounded(3e-4, POSITIVE)  # D28
+    lr_min: float = bounded(1e-6, NON_NEGATIVE)
+    betas: tuple[float, float] = bounded((0.9, 0.98), BELOW_ONE)
+    weight_decay: float = bounded(0.01, NON_NEGATIVE)
+    warmup_frac: float = bounded(0.05, PROBABILITY)
+    grad_clip: float = bounded(1.0, POSITIVE)
+    steps: int = bounded(20_000, POSITIVE)
+    batch: int = bounded(256, POSITIVE)
+    ema_decay: float = bounded(0.0, BELOW_ONE)  # EMA of the weights for validation and checkpoint (0 = off)
 
     def __post_init__(self) -> None:
         _check_choices(self, PREDICTOR_CHOICES)
         if self.width % self.heads:
             raise ConfigError(f"width {self.width} is not divisible by heads {self.heads}")
-        if self.past < 1 or self.future < 1:
-            raise ConfigError(f"past and future must be >= 1, got {self.past}/{self.future}")
 
     @property
     def window(self) -> int:

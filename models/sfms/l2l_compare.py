@@ -24,6 +24,7 @@ import torch
 
 from dyadbench import atomic
 from dyadbench.arrays import load_npy
+from dyadbench.cli.options import SEED
 from dyadbench.datasets.base import DyadicClip
 from dyadbench.errors import InputError
 from dyadbench.protocol.runner import open_dataset_split
@@ -146,7 +147,7 @@ def paired_table(runs: list[tuple[str, list[dict]]]) -> str:
 
 @click.command()
 @click.argument("runs", nargs=-1, required=True, type=click.Path(exists=True, file_okay=False, path_type=Path))
-@click.option("--seed", default=0, show_default=True, help="Seed of the suite's randomised parts (k-means).")
+@click.option("--seed", default=0, show_default=True, type=SEED, help="Seed of the suite's randomised parts (k-means).")
 @click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
               help="Dataset root the runs were evaluated on (default: the embedded synthetic corpus).")
 @click.option("--clips", type=click.IntRange(min=1), default=None,

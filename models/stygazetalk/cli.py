@@ -9,6 +9,7 @@ from typing import Callable
 
 import click
 
+from dyadbench.cli.options import SEED, real
 from dyadbench.errors import ConfigError
 from models.stygazetalk.config import CHECKPOINT_SELECTIONS
 
@@ -45,7 +46,7 @@ def _overrides(base, **values):
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
 @click.option("--batch", type=click.IntRange(min=2), default=None,
               help="Override the preset's pairs per batch (anchors of one session stay >= 10 s apart).")
-@click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
+@click.option("--seed", type=SEED, default=None, help="Override the preset's seed (recorded in the checkpoint).")
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
@@ -97,12 +98,12 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @data_options("Split for checkpoint selection (teacher-forced validation loss).")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
 @click.option("--batch", type=click.IntRange(min=1), default=None, help="Override the preset's batch size.")
-@click.option("--lam", type=click.FloatRange(0.0, 1.0), default=None,
+@click.option("--lam", type=real(0, 1), default=None,
               help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
-@click.option("--rollout-prob", type=click.FloatRange(0.0, 1.0), default=None,
+@click.option("--rollout-prob", type=real(0, 1), default=None,
               help="Override the share of training steps whose last N-1 inputs are the model's own outputs "
                    "(scheduled sampling, D9; 0 = teacher forcing only).")
-@click.option("--seed", type=int, default=None, help="Override the preset's seed (recorded in the checkpoint).")
+@click.option("--seed", type=SEED, default=None, help="Override the preset's seed (recorded in the checkpoint).")
 @click.option("--selection", type=click.Choice(list(CHECKPOINT_SELECTIONS)), default=None,
               help="Override which weights are kept: lowest validation L_gen (preset, D27), lowest validation "
                    "MSE alone (val-mse: one criterion whatever --lam), or the final step.")

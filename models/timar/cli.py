@@ -10,6 +10,7 @@ from typing import Callable
 
 import click
 
+from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
 from models.timar.config import MOTION_NORMS, PRESETS
 
 OPTIONS = [
@@ -29,12 +30,12 @@ OPTIONS = [
                  help="Total epochs (with --resume: the total to reach, counting those already done)."),
     click.option("--batch-size", type=click.IntRange(min=1), default=None,
                  help="Windows per step and process [default: the config's, 32; tiny: 8]."),
-    click.option("--lr", type=float, default=None, help="Peak learning rate [default: the config's]."),
-    click.option("--warmup-epochs", type=float, default=0.0, show_default=True,
+    click.option("--lr", type=POSITIVE, default=None, help="Peak learning rate [default: the config's]."),
+    click.option("--warmup-epochs", type=NON_NEGATIVE, default=0.0, show_default=True,
                  help="Linear learning-rate warm-up length in epochs (fractions allowed)."),
     click.option("--stride", "stride_turns", type=click.IntRange(min=1), default=8, show_default=True,
                  help="Start of consecutive 8-turn training windows, in turns (8 = non-overlapping)."),
-    click.option("--seed", type=int, default=0, show_default=True,
+    click.option("--seed", type=SEED, default=0, show_default=True,
                  help="Seed of initialisation, data order, masks and diffusion noise (recorded)."),
     click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
                  help="Run folder for checkpoint.pt (resumable, rewritten every epoch) "

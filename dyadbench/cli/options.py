@@ -1,0 +1,66 @@
+"""Click parameter types with the domain of every numeric option, so a bad value is a usage error (exit 2).
+
+Every numeric option of every command uses one of these (or ``click.IntRange``) instead of a bare
+``int``/``float``: counts are positive, seeds are non-negative, real values are finite and within their
+range. ``click.FloatRange`` alone lets ``nan`` (and ``inf`` when unbounded) through; :func:`real` does not.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import click
+
+#: A seed: any non-negative integer (recorded in results and checkpoints).
+SEED = click.IntRange(min=0)
+#: A count of things (steps, clips, threads, windows ...).
+COUNT = click.IntRange(min=1)
+
+
+class FiniteFloatRange(click.FloatRange):
+    """``click.FloatRange`` that also refuses ``nan`` and ``±inf``."""
+
+    name = "finite float range"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        rv = super().convert(value, param, ctx)
+        if not math.isfinite(rv):
+            self.fail(f"{rv} is not a finite number.", param, ctx)
+        return rv
+
+
+def real(min: float | None = None, max: float | None = None, *, min_open: bool = False,
+         max_open: bool = False) -> FiniteFloatRange:
+    """A finite float in the given range, e.g. ``real(0, min_open=True)`` for a positive number."""
+    return FiniteFloatRange(min=min, max=max, min_open=min_open, max_open=max_open)
+
+
+#: A positive finite number (seconds, learning rates ...).
+POSITIVE = real(0, min_open=True)
+#: A non-negative finite number.
+NON_NEGATIVE = real(0)
+
+
+class IntList(click.ParamType):
+    """Comma-separated integers, each at least ``min``, e.g. ``--contexts 0,3,7``."""
+
+    name = "integers"
+
+    def __init__(self, min: int = 0) -> None:
+        self.min = min
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        if isinstance(value, list):
+            return value
+        items = [v.strip() for v in str(value).split(",") if v.strip()]
+        if not items:
+            self.fail("needs at least one value.", param, ctx)
+        try:
+            numbers = [int(v) for v in items]
+        except ValueError:
+            self.fail(f"expected comma-separated integers, got {value!r}.", param, ctx)
+        low = [n for n in numbers if n < self.min]
+        if low:
+            self.fail(f"{', '.join(map(str, low))} not in the range x>={self.min}.", param, ctx)
+        return numbers
