@@ -22,7 +22,7 @@ def test_byte_for_byte_deterministic_for_a_seed_and_independent_of_jobs(tmp_path
     writers.write_dualtalk_split(tmp_path / "b", split="ood", clips=2, seed=7, jobs=2, progress=False)
     writers.write_dualtalk_split(tmp_path / "c", split="ood", clips=2, seed=8, jobs=1, progress=False)
     first = digests(tmp_path / "a" / "ood")
-    assert len(first) == 2 * 4 + 1
+    assert len(first) == 2 * 4 + 2  # 4 files per dialogue, synthetic.json and the output marker
     assert first == digests(tmp_path / "b" / "ood")
     other = digests(tmp_path / "c" / "ood")
     assert all(first[k] != other[k] for k in first if k.endswith((".wav", ".npz")))

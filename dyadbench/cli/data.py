@@ -42,9 +42,16 @@ def data() -> None:
               help="Generator seed; the same seed writes byte-identical files.")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes (the files do not depend on it).")
-def synth(out: Path, layout: str, split: str, clips: int | None, seed: int, jobs: int) -> None:
-    """Write a synthetic split of the embedded conversation corpus in LAYOUT."""
-    summary = get_layout(layout).write(out, split=split, clips=clips, seed=seed, jobs=jobs)
+@click.option("--force", is_flag=True,
+              help="Replace the split folder even when it holds files the generator did not write.")
+def synth(out: Path, layout: str, split: str, clips: int | None, seed: int, jobs: int, force: bool) -> None:
+    """Write a synthetic split of the embedded conversation corpus in LAYOUT.
+
+    The split folder is written aside and swapped in when complete: a previously generated split there
+    is replaced whole (never mixed with the new clips), and an interrupted run leaves it untouched. A
+    split folder holding other files is refused unless --force.
+    """
+    summary = get_layout(layout).write(out, split=split, clips=clips, seed=seed, jobs=jobs, force=force)
     click.echo(to_json(summary), nl=False)
 
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 import io
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -13,11 +14,12 @@ import click
 from dyadbench import atomic
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
 from dyadbench.datasets.base import ClipSource
-from dyadbench.errors import ConfigError
+from dyadbench.errors import ConfigError, InputError
+from dyadbench.outputs import check_cache, kept_on_failure, owned_folder
 from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.registry import DATASETS, MODELS
-from dyadbench.results import EvalResult
+from dyadbench.results import EvalResult, load_result
 
 EMBEDDED = "synthetic"
 
@@ -130,6 +132,32 @@ def write_per_clip(result: EvalResult, path: Path) -> Path:
     return atomic.write_text(path, buf.getvalue())
 
 
+def save_result(result: EvalResult, path: Path, destination: Path | None = None) -> Path:
+    """Write ``result`` to ``path``; when that fails, keep it under the system's temporary folder and raise
+    an OutputError naming ``destination`` (default ``path``: where the user asked for it) and the kept file."""
+    with kept_on_failure(destination or path, lambda: atomic.to_json(result.to_dict())):
+        return result.write(path)
+
+
+def predictions_at(result: EvalResult, folder: Path) -> EvalResult:
+    """The result recording ``folder`` as its predictions (written aside, then moved there)."""
+    return replace(result, predictions=str(folder))
+
+
+def is_eval_output(folder: Path) -> bool:
+    """True for a folder ``eval --out`` wrote before output folders carried a marker: its result.json loads."""
+    try:
+        load_result(folder / "result.json")
+    except InputError:
+        return False
+    return True
+
+
+def is_predictions_folder(folder: Path) -> bool:
+    """True for a folder of ``<stem>.npy`` prediction files only (a run's kept predictions)."""
+    return all(p.suffix == ".npy" and p.is_file() for p in folder.iterdir())
+
+
 @click.command("eval")
 @click.option("--model", "model", required=True, help=f"Registered model ({', '.join(MODELS.names())}).")
 @click.option("--split", default="test", show_default=True, help="Split to evaluate: train, test or ood.")
@@ -142,10 +170,15 @@ def write_per_clip(result: EvalResult, path: Path) -> Path:
                    "the evaluated split, or a gaze-layout <session>.npz; its style conditions every window.")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder: predictions/<clip>_speakerK.npy, result.json, per_clip.csv "
-                   "[default: runs/<model>_<dataset>_<split>_n<context>].")
+                   "[default: runs/<model>_<dataset>_<split>_n<context>]. Written aside and swapped in when "
+                   "complete: it then holds this run's files only, and an interrupted run leaves the "
+                   "previous output untouched.")
+@click.option("--force", is_flag=True,
+              help="Replace --out even when it holds files that are not a previous eval output.")
 def eval_command(model: str, split: str, context: int, turn_seconds: float, tail: str, history_agent: str,
                  seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
-                 clips: int | None, jobs: int, threads: int | None, style_from: str | None, out: Path | None) -> None:
+                 clips: int | None, jobs: int, threads: int | None, style_from: str | None, out: Path | None,
+                 force: bool) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
@@ -160,12 +193,16 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
                             seed=seed)
     name = resolve_dataset(data, dataset)
-    source, train = open_splits(data, name, split)
     out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
-    extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
-    result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips, jobs=jobs,
-                     predictions_dir=out / "predictions", extra=extra, threads=threads)
-    result_path = result.write(out / "result.json")
-    csv_path = write_per_clip(result, out / "per_clip.csv")
+    check_cache()
+    with owned_folder(out, "eval", force=force, label=f"--out {out}", legacy=is_eval_output) as staging:
+        source, train = open_splits(data, name, split)
+        extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
+        result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
+                         jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads)
+        result = predictions_at(result, out / "predictions")
+        save_result(result, staging / "result.json", out / "result.json")
+        write_per_clip(result, staging / "per_clip.csv")
     click.echo(summary(result))
-    click.echo(f"wrote {out / 'predictions'}/ ({result.data.items} files), {result_path} and {csv_path}")
+    click.echo(f"wrote {out / 'predictions'}/ ({result.data.items} files), {out / 'result.json'} and "
+               f"{out / 'per_clip.csv'}")

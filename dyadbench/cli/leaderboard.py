@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from dyadbench.leaderboard import long_table, table_texts, write_tables
+from dyadbench.outputs import check_folder
 
 #: Published rows shipped with dyadbench (transcribed from the TIMAR paper, Tables 1 and 2).
 PAPER_ROWS = Path(__file__).resolve().parents[2] / "leaderboards" / "paper_timar.csv"
@@ -36,6 +37,7 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
     transcribed published rows.
     A RESULTS folder without result files is an error (nothing is written).
     """
+    check_folder(out, f"--out {out}")
     sources = list(results) or [Path("results")]
     papers = [] if no_paper else (list(paper) or ([PAPER_ROWS] if PAPER_ROWS.is_file() else []))
     long = long_table(sources, papers)

@@ -9,6 +9,7 @@ import numpy as np
 
 from dyadbench.cli.eval import open_splits, resolve_dataset
 from dyadbench.errors import InputError
+from dyadbench.outputs import check_cache, check_file
 from dyadbench.registry import DATASETS
 
 
@@ -37,6 +38,8 @@ def trajectories(predictions: Path, clip_id: str, agent: str, data: Path | None,
     from dyadbench.motion import LAYOUTS  # noqa: PLC0415
     from dyadbench.plotting import parse_dims, plot_trajectories  # noqa: PLC0415
 
+    check_file(out, f"--out {out}")
+    check_cache()
     path = predictions / f"{clip_id}_{agent}.npy"
     if not path.is_file():
         raise InputError(path, "prediction file not found")
@@ -64,5 +67,6 @@ def context(results: tuple[Path, ...], metrics: tuple[str, ...], out: Path) -> N
     from dyadbench.plotting import plot_context_curves  # noqa: PLC0415
     from dyadbench.results import results_frame  # noqa: PLC0415
 
+    check_file(out, f"--out {out}")
     written = plot_context_curves(results_frame(results), list(metrics), out)
     click.echo(f"wrote {written}")

@@ -7,7 +7,9 @@ from pathlib import Path
 
 import click
 
+from dyadbench import atomic
 from dyadbench.cli.options import SEED
+from dyadbench.outputs import check_folder, kept_on_failure
 from dyadbench.registry import SUITES
 
 
@@ -40,6 +42,8 @@ def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None,
     those stems. The partner of <clip>_speaker1 is <clip>_speaker2.
     By default the predictions present are scored and coverage is reported; --strict fails on gaps.
     """
+    if out is not None:
+        check_folder(out, f"--out {out}")
     score_paths = SUITES.load(suite)
     report = score_paths(pred, gt, split=split, jobs=jobs, seed=seed)
     click.echo(f"[{suite}] {report.coverage_line()}")
@@ -47,7 +51,8 @@ def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None,
         click.echo(f"note: {note}")
     click.echo(report.table())
     if out is not None:
-        json_path, csv_path = report.write(out)
+        with kept_on_failure(out / "results.json", lambda: atomic.to_json(report.to_dict())):
+            json_path, csv_path = report.write(out)
         click.echo(f"wrote {json_path} and {csv_path}")
     if strict and not report.complete:
         click.echo("error: --strict: predictions are missing or were excluded (see above)", err=True)

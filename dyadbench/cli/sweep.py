@@ -9,14 +9,18 @@ whose file exists are skipped (unless --force), so adding a model's rows never r
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import replace
 from pathlib import Path
+from typing import Iterator
 
 import click
 
-from dyadbench.cli.eval import data_options, open_splits, protocol_options, resolve_dataset, run_one, summary
+from dyadbench.cli.eval import (data_options, is_predictions_folder, open_splits, predictions_at, protocol_options,
+                                resolve_dataset, run_one, save_result, summary)
 from dyadbench.cli.options import IntList
 from dyadbench.errors import ConfigError
+from dyadbench.outputs import check_cache, check_folder, owned_folder
 from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.registry import MODELS
 from dyadbench.results import EvalResult
@@ -32,6 +36,19 @@ def without_per_clip(result: EvalResult) -> EvalResult:
     coverage = {k: len(v) if isinstance(v, (list, dict)) else v for k, v in result.coverage.items()}
     return replace(result, per_clip=[], coverage=coverage,
                    notes=result.notes + ["per-clip metrics not kept (--no-per-clip); coverage lists are counts"])
+
+
+@contextlib.contextmanager
+def kept_predictions(folder: Path | None, force: bool) -> Iterator[Path | None]:
+    """Where a run writes its predictions: None (the runner's temporary folder, removed after scoring) or,
+    with --keep-predictions, a temporary folder swapped onto ``folder`` when the run completes
+    (:func:`dyadbench.outputs.owned_folder`)."""
+    if folder is None:
+        yield None
+        return
+    with owned_folder(folder, "predictions", force=force, label=f"--keep-predictions folder {folder}",
+                      legacy=is_predictions_folder) as staging:
+        yield staging
 
 
 def _csv(value: str, what: str) -> list[str]:
@@ -75,6 +92,10 @@ def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float
     for name in names:
         MODELS.get(name)
     dataset_name = resolve_dataset(data, dataset)
+    check_cache()
+    check_folder(out, f"--out {out}")
+    if keep_predictions is not None:
+        check_folder(keep_predictions, f"--keep-predictions {keep_predictions}")
     for split in _csv(splits, "splits"):
         source, train = open_splits(data, dataset_name, split)
         for context in context_list:
@@ -89,7 +110,10 @@ def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float
                     continue
                 preds = (result_path(keep_predictions, dataset_name, split, context, name, variant).with_suffix("")
                          if keep_predictions else None)
-                result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
-                                 jobs=jobs, predictions_dir=preds, threads=threads)
+                with kept_predictions(preds, force) as staging:
+                    result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights,
+                                     clips=clips, jobs=jobs, predictions_dir=staging, threads=threads)
+                if preds is not None:
+                    result = predictions_at(result, preds)
                 click.echo(summary(result).splitlines()[0] + f" -> {path}")
-                (result if per_clip else without_per_clip(result)).write(path)
+                save_result(result if per_clip else without_per_clip(result), path)

@@ -272,12 +272,13 @@ def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
 
     if split not in SPLITS:
         raise ConfigError(f"unknown synthetic gaze split {split!r} (known: {', '.join(SPLITS)})")
-    root = synthetic_root() if root is None else Path(root)
+    in_cache = root is None  # the cache's split folders are dyadbench's own: replaced whatever they hold
+    root = synthetic_root() if in_cache else Path(root)
     marker = root / split / ".complete.json"
-    if not marker.is_file():  # absent or interrupted: (re)write; every file is written atomically
+    if not marker.is_file():  # absent, or left by an interrupted older version: (re)write the split whole
         print(f"dyadbench: generating the synthetic gaze-head {split} split (seed {SYNTHETIC_SEED}) into "
               f"{root / split} (first use only)", file=sys.stderr)
-        summary = write_gaze_split(root, split=split, seed=SYNTHETIC_SEED)
+        summary = write_gaze_split(root, split=split, seed=SYNTHETIC_SEED, force=in_cache)
         atomic.write_json(marker, summary)
     source = GazeSource(root, split)
     source.dataset = "synthetic-gaze"

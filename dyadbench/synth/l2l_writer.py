@@ -33,13 +33,13 @@ from dyadbench.errors import ConfigError
 from dyadbench.features.logmel import logmel_frames
 from dyadbench.motion import flame56_to_l2l
 from dyadbench.synth.corpus import make_clip
-from dyadbench.synth.generation import clip_count, map_tasks
+from dyadbench.synth.generation import SUMMARY, clip_count, map_tasks, split_folder
 from dyadbench.synth.styles import GENERATOR_VERSION
 
 HOST = "synth"
 STRIDE = 32
 MEL_FPS = 100.0
-MARKER = "synthetic.json"
+MARKER = SUMMARY
 SPLIT_SIZES = {"train": 120, "test": 40}
 
 
@@ -93,27 +93,29 @@ def _one(args: tuple[str, int, int]) -> dict[int, list]:
 
 
 def write_l2l_split(out: str | Path, *, split: str = "test", clips: int | None = None, seed: int = 0,
-                    jobs: int = 1, progress: bool = True) -> dict:
-    """Generate ``clips`` dialogues (default: the split's standard size) into ``out/synth/<split>/``."""
+                    jobs: int = 1, progress: bool = True, force: bool = False) -> dict:
+    """Generate ``clips`` dialogues (default: the split's standard size) into ``out/synth/<split>/``, replaced
+    whole when complete (:func:`dyadbench.synth.generation.split_folder`; ``force``: even when it holds
+    files the generator did not write)."""
     if split not in SPLITS:
         raise ConfigError(f"Learning2Listen splits are {', '.join(SPLITS)}, got {split!r}")
     n = clip_count(clips, SPLIT_SIZES[split], jobs)
     folder = Path(out) / HOST / split
-    folder.mkdir(parents=True, exist_ok=True)
-    results = map_tasks(_one, [(split, i, seed) for i in range(n)], jobs=jobs, desc=f"synth l2l/{split}",
-                        progress=progress)
-    counts = {}
-    for listener in (0, 1):
-        windows = [w for r in results for w in r[listener]]
-        if not windows:
-            raise ConfigError(f"no window where person {1 - listener} talks; generate more clips")
-        talker = 1 - listener
-        stacked = [np.stack([w[i] for w in windows]) for i in range(4)]
-        for kind, array in zip(("list_faces", "speak_faces", "speak_audio", "speak_files"), stacked):
-            atomic.save_npy(folder / array_name(listener if kind == "list_faces" else talker, kind), array)
-        counts[f"p{listener}_listening"] = len(windows)
-    summary = {"layout": "l2l", "generator": "dyadbench.synth", "version": GENERATOR_VERSION, "seed": seed,
-               "split": split, "host": HOST, "dialogues": n, "windows": counts, "fps": FPS, "stride": STRIDE,
-               "window_rule": "talker speaks in >= half the frames and more than the listener"}
-    atomic.write_json(folder / MARKER, summary)
+    with split_folder(folder, "l2l", force) as staging:
+        results = map_tasks(_one, [(split, i, seed) for i in range(n)], jobs=jobs, desc=f"synth l2l/{split}",
+                            progress=progress)
+        counts = {}
+        for listener in (0, 1):
+            windows = [w for r in results for w in r[listener]]
+            if not windows:
+                raise ConfigError(f"no window where person {1 - listener} talks; generate more clips")
+            talker = 1 - listener
+            stacked = [np.stack([w[i] for w in windows]) for i in range(4)]
+            for kind, array in zip(("list_faces", "speak_faces", "speak_audio", "speak_files"), stacked):
+                atomic.save_npy(staging / array_name(listener if kind == "list_faces" else talker, kind), array)
+            counts[f"p{listener}_listening"] = len(windows)
+        summary = {"layout": "l2l", "generator": "dyadbench.synth", "version": GENERATOR_VERSION, "seed": seed,
+                   "split": split, "host": HOST, "dialogues": n, "windows": counts, "fps": FPS, "stride": STRIDE,
+                   "window_rule": "talker speaks in >= half the frames and more than the listener"}
+        atomic.write_json(staging / MARKER, summary)
     return {**summary, "folder": str(folder)}

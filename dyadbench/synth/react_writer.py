@@ -9,7 +9,8 @@ participant ``speaker1`` / ``speaker2`` with relative path ``Synth/<clip>/<parti
 - ``<split>/3D_FV_files/<rel>.npy``: (1, 751, 58) float32 = [exp 50, 0, 0 | head rotation 3 | 0 0 0];
 - ``<split>.csv``: ``,speaker_path,listener_path`` with speaker1 as speaker and speaker2 as listener;
 - for val/test, ``neighbour_emotion_<split>.npy`` (2M, 2M) in the mirrored order (:func:`neighbour_matrix`);
-- ``<split>/synthetic.json``: generator, seed and the mapping's parameters (written last).
+- ``<split>/synthetic.json``: generator, seed and the mapping's parameters (written last in the split
+  folder, which is built aside and swapped in whole; ``<split>.csv`` and the neighbour matrix follow).
 
 Audio and video are not written (the feature-level metrics do not use them). Clip ``i`` depends only on
 (seed, split, i), so the files do not depend on ``jobs``.
@@ -30,10 +31,10 @@ from dyadbench.errors import ConfigError
 from dyadbench.motion import EXP, JAW, POSE
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.corpus import make_clip
-from dyadbench.synth.generation import clip_count, map_tasks
+from dyadbench.synth.generation import SUMMARY, clip_count, map_tasks, split_folder
 from dyadbench.synth.styles import GENERATOR_VERSION
 
-MARKER = "synthetic.json"
+MARKER = SUMMARY
 SPLIT_SIZES = {"train": 200, "val": 838, "test": 838}
 # emotion mapping parameters (recorded in synthetic.json)
 AU_THRESHOLD = 0.4          # AU a is on when exp[:, a] exceeds its clip mean by this much
@@ -115,44 +116,52 @@ def rel_path(clip_id: str, participant: str) -> str:
 
 
 def _write_one(args: tuple[Path, str, int, int]) -> tuple[tuple[str, str], list[np.ndarray]]:
-    root, split, index, seed = args
+    folder, split, index, seed = args
     clip = make_clip(split, index, seed, duration_s=CLIP_FRAMES / FPS)
     rels, feats = [], []
     for p in clip.participants:
         rel = rel_path(clip.clip_id, p.name)
         features = emotion_features(p.motion, clip.fps)
-        atomic.write_text(root / split / EMOTION_DIR / f"{rel}.csv", _csv_text(features))
-        atomic.save_npy(root / split / FV_DIR / f"{rel}.npy", fv_coefficients(p.motion))
+        atomic.write_text(folder / EMOTION_DIR / f"{rel}.csv", _csv_text(features))
+        atomic.save_npy(folder / FV_DIR / f"{rel}.npy", fv_coefficients(p.motion))
         rels.append(rel)
         feats.append(features)
     return (rels[0], rels[1]), feats
 
 
 def write_react_split(out: str | Path, *, split: str = "val", clips: int | None = None, seed: int = 0,
-                      jobs: int = 1, progress: bool = True) -> dict:
-    """Generate ``clips`` dialogues (default: the split's standard size) into the REACT root ``out``."""
+                      jobs: int = 1, progress: bool = True, force: bool = False) -> dict:
+    """Generate ``clips`` dialogues (default: the split's standard size) into the REACT root ``out``.
+
+    ``out/<split>/`` is replaced whole when complete (:func:`dyadbench.synth.generation.split_folder`;
+    ``force``: even when it holds files the generator did not write); ``<split>.csv`` and the neighbour
+    matrix beside it are then rewritten.
+    """
     if split not in SPLITS:
         raise ConfigError(f"REACT splits are {', '.join(SPLITS)}, got {split!r}")
     n = clip_count(clips, SPLIT_SIZES[split], jobs)
     root = Path(out)
-    (root / split).mkdir(parents=True, exist_ok=True)
-    results = map_tasks(_write_one, [(root, split, i, seed) for i in range(n)], jobs=jobs,
-                        desc=f"synth react/{split}", progress=progress)
-    pairs = [pair for pair, _ in results]
+    with split_folder(root / split, "react", force) as staging:
+        results = map_tasks(_write_one, [(staging, split, i, seed) for i in range(n)], jobs=jobs,
+                            desc=f"synth react/{split}", progress=progress)
+        pairs = [pair for pair, _ in results]
+        summary = {"layout": "react", "generator": "dyadbench.synth", "version": GENERATOR_VERSION, "seed": seed,
+                   "split": split, "dialogues": n, "samples": 2 * n, "frames": CLIP_FRAMES, "fps": FPS,
+                   "emotion_mapping": {"au_threshold": AU_THRESHOLD, "valence_gain": VALENCE_GAIN,
+                                       "arousal_jaw_gain": AROUSAL_JAW_GAIN, "arousal_speed_gain": AROUSAL_SPEED_GAIN,
+                                       "expression_temperature": EXPRESSION_TEMPERATURE, "basis_seed": BASIS_SEED},
+                   "audio": "not written", "video": "not written"}
+        matrix = None
+        if split in SCORED_SPLITS:
+            person = {rel: feats[w] for pair, feats in results for w, rel in enumerate(pair)}
+            listener = np.stack([person[lst] for _, lst in mirrored(pairs)])
+            matrix = neighbour_matrix(listener)
+            summary["neighbours"] = {"fraction": NEIGHBOUR_FRACTION, "minimum": MIN_NEIGHBOURS,
+                                     "per_row": int(matrix.sum(axis=1)[0]),
+                                     "rule": "nearest listener reactions by per-feature mean and std over time"}
+        atomic.write_json(staging / MARKER, summary)
     lines = [",speaker_path,listener_path"] + [f"{i},{s},{lst}" for i, (s, lst) in enumerate(pairs)]
     atomic.write_text(root / f"{split}.csv", "\n".join(lines) + "\n")
-    summary = {"layout": "react", "generator": "dyadbench.synth", "version": GENERATOR_VERSION, "seed": seed,
-               "split": split, "dialogues": n, "samples": 2 * n, "frames": CLIP_FRAMES, "fps": FPS,
-               "emotion_mapping": {"au_threshold": AU_THRESHOLD, "valence_gain": VALENCE_GAIN,
-                                   "arousal_jaw_gain": AROUSAL_JAW_GAIN, "arousal_speed_gain": AROUSAL_SPEED_GAIN,
-                                   "expression_temperature": EXPRESSION_TEMPERATURE, "basis_seed": BASIS_SEED},
-               "audio": "not written", "video": "not written"}
-    if split in SCORED_SPLITS:
-        person = {rel: feats[w] for pair, feats in results for w, rel in enumerate(pair)}
-        listener = np.stack([person[lst] for _, lst in mirrored(pairs)])
-        matrix = neighbour_matrix(listener)
+    if matrix is not None:
         atomic.save_npy(neighbour_path(root, split), matrix)
-        summary["neighbours"] = {"fraction": NEIGHBOUR_FRACTION, "minimum": MIN_NEIGHBOURS, "per_row": int(matrix.sum(axis=1)[0]),
-                                 "rule": "nearest listener reactions by per-feature mean and std over time"}
-    atomic.write_json(root / split / MARKER, summary)
     return {**summary, "folder": str(root)}

@@ -32,9 +32,10 @@ from dyadbench.errors import ConfigError
 from dyadbench.motion import FPS
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.corpus import make_clip
+from dyadbench.synth.generation import SUMMARY, split_folder
 from dyadbench.synth.styles import GENERATOR_VERSION, split_pool
 
-MARKER = "synthetic.json"
+MARKER = SUMMARY
 # default sizes: DualTalk's test and ood splits; train sized to generate in about a minute
 SPLIT_SIZES = {"train": 800, "test": 533, "ood": 377, "val": 100}
 
@@ -100,10 +101,12 @@ def _write_one(args: tuple[Path, str, int, int]) -> tuple[str, dict]:
 
 
 def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | None = None, seed: int = 0,
-                         jobs: int = 1, progress: bool = True) -> dict:
+                         jobs: int = 1, progress: bool = True, force: bool = False) -> dict:
     """Generate ``clips`` dialogues of ``split`` (default: the split's standard size) into ``out/<split>/``.
 
-    Returns the summary also written to ``out/<split>/synthetic.json``.
+    The split folder is replaced whole when complete (:func:`dyadbench.synth.generation.split_folder`;
+    ``force``: even when it holds files the generator did not write). Returns the summary also written
+    to ``out/<split>/synthetic.json``.
     """
     n = default_size(split) if clips is None else int(clips)
     if n < 1:
@@ -111,18 +114,18 @@ def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | N
     if jobs < 1:
         raise ConfigError(f"--jobs must be at least 1, got {jobs}")
     folder = Path(out) / split
-    folder.mkdir(parents=True, exist_ok=True)
-    tasks = [(folder, split, i, seed) for i in range(n)]
-    bar = dict(total=n, desc=f"synth dualtalk/{split}", unit="clip", disable=not progress)
-    if jobs == 1:
-        results = [_write_one(t) for t in tqdm(tasks, **bar)]
-    else:
-        with ProcessPoolExecutor(max_workers=jobs) as pool:
-            results = list(tqdm(pool.map(_write_one, tasks, chunksize=4), **bar))
-    records = dict(sorted(results))
-    frames = sum(r["frames"] for r in records.values())
-    summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
-               "generator_digest": generator_digest(), "seed": seed, "split": split,
-               "style_pool": split_pool(split), "clips": n, "hours": frames / FPS / 3600.0, "records": records}
-    atomic.write_json(folder / MARKER, summary)
+    with split_folder(folder, "dualtalk", force) as staging:
+        tasks = [(staging, split, i, seed) for i in range(n)]
+        bar = dict(total=n, desc=f"synth dualtalk/{split}", unit="clip", disable=not progress)
+        if jobs == 1:
+            results = [_write_one(t) for t in tqdm(tasks, **bar)]
+        else:
+            with ProcessPoolExecutor(max_workers=jobs) as pool:
+                results = list(tqdm(pool.map(_write_one, tasks, chunksize=4), **bar))
+        records = dict(sorted(results))
+        frames = sum(r["frames"] for r in records.values())
+        summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
+                   "generator_digest": generator_digest(), "seed": seed, "split": split,
+                   "style_pool": split_pool(split), "clips": n, "hours": frames / FPS / 3600.0, "records": records}
+        atomic.write_json(staging / MARKER, summary)
     return {**{k: v for k, v in summary.items() if k != "records"}, "folder": str(folder)}

@@ -18,6 +18,7 @@ from dyadbench import atomic
 from dyadbench.cli.options import COUNT, SEED, real
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
+from dyadbench.outputs import check_cache, check_file
 from dyadbench.registry import DATASETS
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.training.checkpoint import file_digest, save_checkpoint
@@ -123,6 +124,8 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
     Example (the shipped tiny tokenizer):
       dyadbench train sfms-tokenizer --config tiny --out sfms-tok.pt
     """
+    check_cache()
+    check_file(out, f"--out {out}")
     torch.set_num_threads(threads)
     extra = _overrides(overrides, steps, batch)
     extra.update({k: v for k, v in (("keyframes", keyframes), ("keyframe_mode", keyframe_mode),
@@ -164,6 +167,8 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
       dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
           --out models/sfms/checkpoints/sfms-tiny.pt
     """
+    check_cache()
+    check_file(out, f"--out {out}")
     torch.set_num_threads(threads)
     if preset not in PREDICTOR_PRESETS:
         raise ConfigError(f"unknown config {preset!r} (known: {', '.join(PREDICTOR_PRESETS)})")

@@ -11,6 +11,7 @@ import click
 
 from dyadbench.cli.options import SEED, real
 from dyadbench.errors import ConfigError
+from dyadbench.outputs import check_cache, check_file
 from models.stygazetalk.config import CHECKPOINT_SELECTIONS
 
 THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1; results can differ in the last bits with more)."
@@ -68,6 +69,8 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     from models.stygazetalk.train_style import (cross_session_retrieval, retrieval_accuracy, tiled_windows,
                                                 train_style_encoder as fit)
 
+    check_cache()
+    check_file(out, f"--out {out}")
     torch.set_num_threads(threads)
     cfg = _overrides(get_style_config(config_name), steps=steps, batch_pairs=batch, seed=seed)
     min_frames = 2 * cfg.window + cfg.pair_gap_max
@@ -127,6 +130,8 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.data import load_segments
     from models.stygazetalk.train_generator import train_generator as fit
 
+    check_cache()
+    check_file(out, f"--out {out}")
     torch.set_num_threads(threads)
     cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam,
                      rollout_prob=rollout_prob, seed=seed, checkpoint_selection=selection).validate()

@@ -60,10 +60,16 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
          epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float, stride_turns: int, seed: int,
          out: Path | None, resume: Path | None, export: Path | None, device: str, wav2vec_weights: str | None) -> None:
     from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)
+    from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
     from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
 
+    out = out or Path("runs") / f"{MODEL_NAMES[variant]}-{config_name}"
+    check_cache()
+    check_folder(out, f"--out {out}")
+    if export is not None:
+        check_file(export, f"--export {export}")
     cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
     source = open_dataset_split("dualtalk" if data is not None else "synthetic", data, "train")
     if clips is not None:
@@ -72,7 +78,6 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, lr=lr, warmup_epochs=warmup_epochs, seed=seed,
                              stride_turns=stride_turns, device=device, wav2vec_weights=wav2vec_weights,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))
-    out = out or Path("runs") / f"{MODEL_NAMES[variant]}-{config_name}"
     path = train_timar_model(cfg, source, out, settings, resume=resume, export=export)
     click.echo(f"checkpoint: {path}")
 
