@@ -4,9 +4,9 @@
   path cannot be written (a file where a folder is needed, a read-only folder, a name the file system
   refuses as too long, a cache path that is a file), with one line naming the path. Missing folders are
   created for the check and removed again, and a probe file is written and removed: the honest test.
-- :func:`owned_folder`: an output folder written by one run only. The run writes into a fresh
-  temporary sibling folder, created at once (so an unwritable output fails before the work); when the
-  run completes, the marker :data:`MARKER` is added and the folder swapped into place (the previous
+- :class:`OwnedFolder` / :func:`owned_folder`: an output folder written by one run only. The run writes
+  into a fresh temporary sibling folder, created at once (so an unwritable output fails before the work;
+  :meth:`OwnedFolder.check` checks the same earlier still); when the run completes, the marker :data:`MARKER` is added and the folder swapped into place (the previous
   folder moved aside, the new one renamed in, the old one removed). On any failure or interruption the
   previous output stays untouched and the temporary folder is removed. A non-empty folder that is not a
   previous output of the same kind is refused unless ``force``.
@@ -138,37 +138,62 @@ def _claim(path: Path, kind: str, force: bool, label: str, legacy: Callable[[Pat
                       f"refusing to replace them (use --force to replace the folder, or choose an empty or new one)")
 
 
-@contextlib.contextmanager
-def owned_folder(path: str | Path, kind: str, *, force: bool = False, label: str | None = None,
-                 legacy: Callable[[Path], bool] | None = None) -> Iterator[Path]:
-    """Yield a fresh temporary folder to write the output of one run; swap it onto ``path`` at the end.
+class OwnedFolder:
+    """An output folder written by one run only (see the module docstring).
 
     ``kind`` names what the folder holds (recorded in :data:`MARKER`; only a folder of the same kind,
     an empty one, or with ``force`` any folder, is replaced). ``legacy(folder)`` recognises outputs
     written before the marker existed. ``label`` leads error messages (default: ``output folder PATH``).
-    Raises ConfigError before the block runs when ``path`` cannot be written, and OutputError (naming
-    the complete temporary folder, which is then kept) when the finished output cannot be moved into place.
+    A symlinked folder is written where it points.
     """
-    label = label or f"output folder {path}"
-    target = Path(os.path.realpath(path))  # a symlinked output folder is written where it points
-    _claim(target, kind, force, label, legacy)
-    created = _make_folders(target.parent, label)
-    try:
-        if not os.path.lexists(target):  # the name itself is accepted (not too long, ...)
-            os.mkdir(target)
-            os.rmdir(target)
-        staging = atomic.make_temp_dir(target.parent, prefix=f".{target.name[:_NAME_KEPT]}{STAGING}")
-    except OSError as exc:
-        _remove_folders(created)
-        raise ConfigError(f"{label}: cannot write there ({_problem(exc)})") from None
-    try:
-        yield staging
-        atomic.write_json(staging / MARKER, {"kind": kind, "dyadbench": __version__})
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        _remove_folders(created)
-        raise
-    _swap(staging, target, label)
+
+    def __init__(self, path: str | Path, kind: str, *, force: bool = False, label: str | None = None,
+                 legacy: Callable[[Path], bool] | None = None):
+        self.target = Path(os.path.realpath(path))
+        self.kind, self.force, self.legacy = kind, force, legacy
+        self.label = label or f"output folder {path}"
+
+    def check(self) -> "OwnedFolder":
+        """Fail now (ConfigError) unless :meth:`writing` could start: the folder is absent, empty or
+        replaceable, and its parent is a writable folder that accepts its name."""
+        _claim(self.target, self.kind, self.force, self.label, self.legacy)
+        with _probed(self.target.parent, self.label):
+            if os.path.lexists(self.target):
+                _probe_write(self.target.parent)
+            else:  # the name itself is accepted (not too long, ...)
+                os.mkdir(self.target)
+                os.rmdir(self.target)
+        return self
+
+    @contextlib.contextmanager
+    def writing(self) -> Iterator[Path]:
+        """Yield a fresh temporary sibling folder for the run's output; swap it onto the folder at the end.
+
+        Raises ConfigError before the block runs when the folder cannot be written, and OutputError
+        (naming the complete temporary folder, which is then kept) when the finished output cannot be
+        moved into place. On any exception in the block the temporary folder is removed.
+        """
+        target, label = self.target, self.label
+        self.check()
+        created = _make_folders(target.parent, label)
+        try:
+            staging = atomic.make_temp_dir(target.parent, prefix=f".{target.name[:_NAME_KEPT]}{STAGING}")
+        except OSError as exc:
+            _remove_folders(created)
+            raise ConfigError(f"{label}: cannot write there ({_problem(exc)})") from None
+        try:
+            yield staging
+            atomic.write_json(staging / MARKER, {"kind": self.kind, "dyadbench": __version__})
+        except BaseException:
+            shutil.rmtree(staging, ignore_errors=True)
+            _remove_folders(created)
+            raise
+        _swap(staging, target, label)
+
+
+def owned_folder(path: str | Path, kind: str, **options) -> contextlib.AbstractContextManager[Path]:
+    """``OwnedFolder(path, kind, **options).writing()``: the temporary folder a run writes its output in."""
+    return OwnedFolder(path, kind, **options).writing()
 
 
 def _swap(staging: Path, target: Path, label: str) -> None:

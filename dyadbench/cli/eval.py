@@ -15,7 +15,7 @@ from dyadbench import atomic
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
-from dyadbench.outputs import check_cache, kept_on_failure, owned_folder
+from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
 from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.registry import DATASETS, MODELS
@@ -153,6 +153,11 @@ def is_eval_output(folder: Path) -> bool:
     return True
 
 
+def eval_output(out: Path, force: bool) -> OwnedFolder:
+    """The ``--out`` folder of ``eval``, owned by one run (:class:`dyadbench.outputs.OwnedFolder`)."""
+    return OwnedFolder(out, "eval", force=force, label=f"--out {out}", legacy=is_eval_output)
+
+
 def is_predictions_folder(folder: Path) -> bool:
     """True for a folder of ``<stem>.npy`` prediction files only (a run's kept predictions)."""
     return all(p.suffix == ".npy" and p.is_file() for p in folder.iterdir())
@@ -195,7 +200,7 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     name = resolve_dataset(data, dataset)
     out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
     check_cache()
-    with owned_folder(out, "eval", force=force, label=f"--out {out}", legacy=is_eval_output) as staging:
+    with eval_output(out, force).writing() as staging:
         source, train = open_splits(data, name, split)
         extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
         result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
