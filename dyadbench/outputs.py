@@ -30,7 +30,7 @@ from dyadbench.errors import ConfigError, OutputError
 from dyadbench.paths import cache_location
 
 #: Marker file of a folder written by :func:`owned_folder`: ``{"kind": ..., "dyadbench": version}``.
-MARKER = ".dyadbench-run.json"
+MARKER = ".dyadbench-output"  # JSON, named so that no "*.json" search (result files, ...) picks it up
 #: Infixes of the temporary siblings (new output being written, previous output being removed).
 STAGING, ASIDE = ".dyadbench-tmp-", ".dyadbench-old-"
 _NAME_KEPT = 40  # characters of the output's name kept in its siblings' names

@@ -79,5 +79,5 @@ def test_write_through_the_layout_registry(tmp_path):
     summary = get_layout("gaze").write(tmp_path, split="val", clips=2, seed=0, jobs=1)
     assert summary["sessions"] == 2 and summary["seed"] == 0
     assert sorted(p.name for p in (tmp_path / "val").iterdir()) == [
-        ".dyadbench-run.json", "val000_spk1.npz", "val000_spk1.wav", "val001_spk2.npz", "val001_spk2.wav"]
+        ".dyadbench-output", "val000_spk1.npz", "val000_spk1.wav", "val001_spk2.npz", "val001_spk2.wav"]
     assert get_layout("gaze").validate(tmp_path).ok

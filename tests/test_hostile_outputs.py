@@ -20,7 +20,7 @@ import pytest
 
 from dyadbench import outputs
 from dyadbench.cli import main
-from dyadbench.results import EvalResult, load_result
+from dyadbench.results import EvalResult, load_result, result_files
 from dyadbench.synth.writers import write_dualtalk_split
 
 EVAL = ("eval", "--model", "mean-frame", "--split", "test", "--context", "1")
@@ -110,6 +110,7 @@ def test_a_smaller_rerun_leaves_only_its_own_files_and_score_scores_exactly_them
     result = load_result(out / "result.json")
     assert result.data.clips == 1 and result.data.items == 2 and result.predictions == str(out / "predictions")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run"]
+    assert result_files([out]) == [out / "result.json"]  # the folder's marker is no result file for leaderboards
 
     code, text = dyadbench(capsys, "score", out / "predictions", "--gt", data_root / "test", "--out", tmp_path / "s")
     assert code == 0, text
