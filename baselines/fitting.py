@@ -1,17 +1,15 @@
 """Fitting baselines on a train split, with fitted statistics cached by the split's digest.
 
-:func:`source_digest` identifies a split: for a split read from disk, the relative paths, sizes and
-modification times of its files; for an in-memory split, the bytes of every clip. :func:`cached_fit`
-stores what a baseline fitted as ``<cache>/baselines/<kind>-v<version>-<digest>.npz`` and reuses it
-while the split is unchanged. :func:`frame_statistics` computes the statistics of the trivial
-baselines over every frame of every participant of the split.
+:func:`cached_fit` stores what a baseline fitted as ``<cache>/baselines/<kind>-v<version>-<key>.npz``
+(key: :func:`dyadbench.provenance.source_key` of the train split, from its files' paths, sizes and
+modification times) and reuses it while the split is unchanged. :func:`frame_statistics` computes the
+statistics of the trivial baselines over every frame of every participant of the split.
 """
 
 from __future__ import annotations
 
 import hashlib
 import math
-from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -21,36 +19,20 @@ from dyadbench import atomic
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.paths import cache_dir
+from dyadbench.provenance import source_key
 
 MEDIAN_MAX_FRAMES = 200_000  # the median is taken over every k-th frame, k chosen to keep at most this many
 
 
-def source_digest(source: ClipSource) -> str:
-    """sha256 hex digest identifying a split (see module docstring)."""
-    own = getattr(source, "digest", None)
-    if callable(own):
-        return str(own())
-    h = hashlib.sha256(f"{source.dataset}\x1f{source.split}".encode())
-    root = Path(source.root) if source.root else None
-    if root is not None and root.is_dir():
-        for path in sorted(p for p in root.rglob("*") if p.is_file()):
-            st = path.stat()
-            h.update(f"{path.relative_to(root)}\x1f{st.st_size}\x1f{st.st_mtime_ns}\n".encode())
-        return h.hexdigest()
-    for clip in source:
-        h.update(f"{clip.clip_id}\x1f{clip.fps}\x1f{clip.sample_rate}\x1f{clip.layout}".encode())
-        for p in clip.participants:
-            h.update(p.name.encode())
-            h.update(np.ascontiguousarray(p.motion).tobytes())
-            h.update(np.ascontiguousarray(p.audio).tobytes())
-    return h.hexdigest()
-
-
 def open_train(train_split: Callable[[], ClipSource] | None, model: str) -> ClipSource:
-    """The train split of a baseline's options, or a ConfigError saying the baseline needs one."""
+    """The train split of a baseline's options, or a ConfigError (naming the baseline) saying it needs one
+    or why it cannot have it (:class:`dyadbench.protocol.train_split.TrainSplit`)."""
     if train_split is None:
         raise ConfigError(f"{model} is fitted on a train split; pass ModelOptions(train_split=...)")
-    source = train_split()
+    try:
+        source = train_split()
+    except ConfigError as exc:
+        raise ConfigError(f"{model}: {exc}") from None
     if len(source) == 0:
         raise InputError(f"{source.dataset}/{source.split}", f"{model}: the train split has no clips")
     return source
@@ -59,7 +41,7 @@ def open_train(train_split: Callable[[], ClipSource] | None, model: str) -> Clip
 def cached_fit(kind: str, version: int, source: ClipSource,
                fit: Callable[[ClipSource], dict[str, np.ndarray]]) -> tuple[dict[str, np.ndarray], str]:
     """``fit(source)`` cached on disk; returns (arrays, sha256 of the cached file)."""
-    path = cache_dir() / "baselines" / f"{kind}-v{version}-{source_digest(source)[:20]}.npz"
+    path = cache_dir() / "baselines" / f"{kind}-v{version}-{source_key(source)[:20]}.npz"
     if not path.is_file():
         atomic.save_npz(path, **fit(source))
     with np.load(path) as data:

@@ -1,14 +1,17 @@
 """Leaderboards built only from result files (and transcribed published rows).
 
 - :func:`long_table`: one row per source / model / dataset / split / protocol / context / metric, with
-  raw and publication-scaled values, the scale factor, ``higher_is_better``, the oracle flag and where
-  the number comes from (``source = dyadbench`` with its result file, or ``source = paper`` with the
-  table it was transcribed from).
+  raw and publication-scaled values, the scale factor, ``higher_is_better``, the oracle flag, ``flags``
+  (``train-overlap=N``: the model was fitted on a train split holding N evaluated clips, run with
+  --allow-train-overlap; :meth:`dyadbench.results.EvalResult.flags`) and where the number comes from
+  (``source = dyadbench`` with its result file, or ``source = paper`` with the table it was transcribed
+  from).
 - :func:`wide_table`: the paper layout of one suite (DualTalk/TIMAR: FD, P-FD, MSE, SID, rPCC for
   exp/jaw/pose, scaled as printed), one row per model and setting, with ``rank`` by the first column
   among non-oracle rows of the same source/dataset/split/protocol/context and ``items`` (predictions
-  scored; empty for published rows). Oracle rows are kept, marked and never ranked.
-- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold).
+  scored; empty for published rows). Oracle and flagged rows are kept, marked and never ranked.
+- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold; oracle
+  rows marked †, flagged rows ‡).
 - :func:`table_texts` / :func:`write_tables`: one build's tables, written as a set into a folder that
   afterwards holds exactly them (tables of suites no longer present are removed).
 
@@ -36,8 +39,8 @@ from dyadbench.protocol.config import variant_label
 from dyadbench.results import results_frame
 
 SETTING = ["source", "dataset", "split", "protocol", "context"]
-LONG_COLUMNS = ["source", "model", "oracle", "dataset", "split", "protocol", "context", "suite", "metric",
-                "component", "raw", "scaled", "scale", "higher_is_better", "items", "seed", "tail",
+LONG_COLUMNS = ["source", "model", "oracle", "flags", "dataset", "split", "protocol", "context", "suite",
+                "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "seed", "tail",
                 "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
 _VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed"]
 _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
@@ -152,12 +155,13 @@ def long_table(result_paths: Iterable[str | Path], paper: Iterable[str | Path] =
     out = pd.concat(parts, ignore_index=True).reindex(columns=LONG_COLUMNS)
     out["context"] = out["context"].astype("Int64")
     out["oracle"] = out["oracle"].astype(bool)
+    out["flags"] = out["flags"].fillna("")
     return out.sort_values(["suite", "dataset", "split", "protocol", "context", "source", "oracle", "model",
                             "metric"], kind="stable").reset_index(drop=True)
 
 
 def _reject_duplicates(frame: pd.DataFrame) -> None:
-    key = ["model", "dataset", "split", "protocol", "context", "turn_seconds", "tail", "history_agent",
+    key = ["model", "flags", "dataset", "split", "protocol", "context", "turn_seconds", "tail", "history_agent",
            "cfg_scale", "seed", "metric"]
     dup = frame[frame.duplicated(key, keep=False)]
     if not dup.empty:
@@ -171,22 +175,27 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
     columns, _, better = suite_info(suite)
     if not columns:
         columns = list(dict.fromkeys(part["metric"]))
-    index = SETTING + ["model", "oracle"]
+    index = SETTING + ["model", "oracle", "flags"]
     if part.empty:
         return pd.DataFrame(columns=index + ["rank", "items"] + columns)
     part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
-                       model=_variant_models(part))
+                       model=_variant_models(part), flags=part["flags"].fillna(""))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
     items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
     wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + columns)
     first = columns[0]
     ascending = not bool(better.get(first, False))
     wide["rank"] = pd.array([pd.NA] * len(wide), dtype="Int64")
-    ranked = ~wide["oracle"].astype(bool)
+    ranked = ~unranked(wide)
     wide.loc[ranked, "rank"] = (wide[ranked].groupby(SETTING)[first]
                                 .rank(method="min", ascending=ascending).astype("Int64"))
     wide = wide.sort_values(SETTING + ["oracle", "rank", "model"], kind="stable", na_position="last")
     return wide[index + ["rank", "items"] + columns].reset_index(drop=True)
+
+
+def unranked(rows: pd.DataFrame) -> pd.Series:
+    """True for rows that are never ranked: oracle runs and flagged runs (e.g. train overlap)."""
+    return rows["oracle"].astype(bool) | (rows["flags"].fillna("") != "")
 
 
 def _variant_models(part: pd.DataFrame) -> pd.Series:
@@ -211,7 +220,8 @@ def _variant_models(part: pd.DataFrame) -> pd.Series:
 def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) -> str:
     """A LaTeX tabular of a wide table; best ranked value per column and group in bold, oracle marked."""
     columns, scale, better = suite_info(suite)
-    columns = columns or [c for c in wide.columns if c not in SETTING + ["model", "oracle", "rank", "items"]]
+    columns = columns or [c for c in wide.columns
+                          if c not in SETTING + ["model", "oracle", "flags", "rank", "items"]]
     header = " & ".join(["Model"] + [_latex_header(c, scale.get(c, 1.0), better.get(c)) for c in columns])
     lines = [r"\begin{tabular}{l" + "r" * len(columns) + "}", r"\toprule", header + r" \\", r"\midrule"]
     for setting, group in wide.groupby(SETTING, sort=False):
@@ -219,18 +229,19 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
         label = f"{dataset} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
         lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{_escape(label)}}}}} \\")
         best = {}
-        ranked = group[~group["oracle"].astype(bool)]
+        ranked = group[~unranked(group)]
         for c in columns:
             values = ranked[c].astype(float)
             if better.get(c) is not None and values.notna().any():
                 best[c] = values.max() if better[c] else values.min()
         for _, row in group.iterrows():
-            name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "")
+            name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
+                r"$^\ddagger$" if row["flags"] else "")
             cells = [name]
             for c in columns:
                 v = float(row[c]) if pd.notna(row[c]) else math.nan
                 text = "--" if math.isnan(v) else f"{v:.{digits}f}"
-                if c in best and not row["oracle"] and not math.isnan(v) and np.isclose(v, best[c]):
+                if c in best and row.name in ranked.index and not math.isnan(v) and np.isclose(v, best[c]):
                     text = rf"\textbf{{{text}}}"
                 cells.append(text)
             lines.append(" & ".join(cells) + r" \\")
@@ -239,6 +250,8 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
     lines.append(r"\end{tabular}")
     if wide["oracle"].astype(bool).any():
         lines.append(r"% $^\dagger$ oracle: copies the ground truth; a pipeline check, never ranked.")
+    if (wide["flags"] != "").any():
+        lines.append(r"% $^\ddagger$ flagged (e.g. the train split held evaluated clips); never ranked.")
     return "\n".join(lines) + "\n"
 
 

@@ -70,7 +70,8 @@ SUITES.add("l2l", "dyadbench.scoring.l2l:score_paths",
 SUITES.add("gaze", "dyadbench.scoring.gaze:score_paths",
            "Gaze-head suite (StyGazeTalk): MAE, Vel, MEE, FixRatio, CompScore, SimWithGT, BAS")
 
-# --- datasets: factories ``open_split(root: Path | None, split: str) -> ClipSource`` -----------------
+# --- datasets: factories ``open_split(root: Path | None, split: str | None) -> ClipSource``; split None:
+# the split folder ``root`` itself (ClipSource.single_split), else the dataset's test split ----------
 DATASETS.add("synthetic", "dyadbench.datasets.synthetic:open_split",
              "Embedded synthetic dyadic-conversation corpus (generated on first use, cached). Default.")
 DATASETS.add("dualtalk", "dyadbench.datasets.dualtalk:open_split",

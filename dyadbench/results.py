@@ -1,13 +1,16 @@
 """Typed result files of ``dyadbench eval``: one JSON per model / dataset / split / protocol setting.
 
 A result records the model (name, version, weights digest, oracle flag, config), the data (dataset,
-split, root, number of clips and scored items), the protocol (streaming or offline, turn length, context
-n, tail, history-agent policy, guidance scale, seed), the metric suite with mean metrics raw and
-publication-scaled and the scale factors, per-clip raw metrics, coverage and exclusions, timing (wall
-clock, mean per-turn latency) and the environment (dyadbench, Python, NumPy, torch versions, git
-commit). :func:`load_result` reads one back and rejects malformed files with a message naming the file
-and the field; :func:`results_frame` loads many into a long :class:`pandas.DataFrame`, the only input
-of the leaderboards.
+split, root, number of clips and scored items, content digest of the evaluated clips, and the train split
+the model was fitted on: :mod:`dyadbench.protocol.train_split`), the protocol (streaming or offline,
+turn length, context n, tail, history-agent policy, guidance scale, seed), the metric suite with mean
+metrics raw and publication-scaled and the scale factors, per-clip raw metrics, coverage and exclusions,
+timing (wall clock, mean per-turn latency), the environment (dyadbench, Python, NumPy, torch versions,
+git commit) and the configuration the run was requested with
+(:mod:`dyadbench.protocol.run_configuration`, what ``sweep`` compares before re-using a result). Fields
+added later have defaults, so older files load. :func:`load_result` reads one back and rejects
+malformed files with a message naming the file and the field; :func:`results_frame` loads many into a
+long :class:`pandas.DataFrame`, the only input of the leaderboards.
 """
 
 from __future__ import annotations
@@ -47,6 +50,8 @@ class DataRecord:
     root: str | None
     clips: int  # dialogues (or sessions) run
     items: int  # evaluated directions (predictions written)
+    digest: str | None = None  # content digest of the evaluated clips (dyadbench.provenance.split_digest)
+    train: dict | None = None  # the train split the model opened: dataset, split, root, digest, clips, overlap
 
 
 @dataclass(frozen=True)
@@ -88,6 +93,7 @@ class EvalResult:
     predictions: str | None = None
     environment: dict = field(default_factory=dict)
     created_utc: str = ""
+    configuration: dict | None = None  # dyadbench.protocol.run_configuration.requested_configuration
     schema: str = SCHEMA
 
     def to_dict(self) -> dict:
@@ -128,10 +134,17 @@ class EvalResult:
         return cls(suite=d["suite"], per_clip=rows, coverage=d.get("coverage") or {},
                    excluded=d.get("excluded") or [], notes=d.get("notes") or [],
                    predictions=d.get("predictions"), environment=d.get("environment") or {},
-                   created_utc=d.get("created_utc", ""), **parts)
+                   created_utc=d.get("created_utc", ""),
+                   configuration=_optional_object(d, "configuration", source), **parts)
 
     def per_clip_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.per_clip)
+
+    def flags(self) -> str:
+        """Why the run must not be ranked besides being an oracle: ``train-overlap=N`` when its train split
+        held N of the evaluated clips (run with --allow-train-overlap); empty otherwise."""
+        overlap = (self.data.train or {}).get("overlap")
+        return f"train-overlap={overlap}" if overlap else ""
 
 
 def _record(record: type, value: object, source: str | Path, key: str):
@@ -150,8 +163,15 @@ def _record(record: type, value: object, source: str | Path, key: str):
     return record(**{n: value[n] for n in names})
 
 
+def _optional_object(d: dict, key: str, source: str | Path) -> dict | None:
+    value = d.get(key)
+    if value is not None and not isinstance(value, dict):
+        raise InputError(source, f"field {key!r} is not an object")
+    return value
+
+
 _ALLOWED = {str: (str,), int: (int,), float: (int, float), bool: (bool,), dict: (dict,),
-            str | None: (str, type(None)), int | None: (int, type(None))}
+            str | None: (str, type(None)), int | None: (int, type(None)), dict | None: (dict, type(None))}
 
 
 def _numbers(value: object, source: str | Path, key: str) -> dict[str, float]:
@@ -203,7 +223,7 @@ def result_files(paths: Iterable[str | Path]) -> list[Path]:
     return out
 
 
-RESULT_COLUMNS = ("model", "oracle", "dataset", "split", "protocol", "context", "turn_seconds", "tail",
+RESULT_COLUMNS = ("model", "oracle", "flags", "dataset", "split", "protocol", "context", "turn_seconds", "tail",
                   "history_agent", "cfg_scale", "seed", "suite", "metric", "raw", "scaled", "scale",
                   "items", "weights_digest", "file")
 
@@ -214,7 +234,8 @@ def results_frame(paths: Iterable[str | Path]) -> pd.DataFrame:
     for path in result_files(paths):
         r = load_result(path)
         for metric, raw in r.metrics.items():
-            rows.append({"model": r.model.name, "oracle": bool(r.model.oracle), "dataset": r.data.dataset,
+            rows.append({"model": r.model.name, "oracle": bool(r.model.oracle), "flags": r.flags(),
+                         "dataset": r.data.dataset,
                          "split": r.data.split, "protocol": r.protocol.name, "context": r.protocol.context,
                          "turn_seconds": r.protocol.turn_seconds, "tail": r.protocol.tail,
                          "history_agent": r.protocol.history_agent, "cfg_scale": r.protocol.cfg_scale,

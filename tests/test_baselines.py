@@ -16,6 +16,7 @@ from baselines.trivial import build_mean_frame, build_median_frame, build_random
 from dyadbench.datasets.base import InMemorySource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.paths import cache_dir
+from dyadbench.provenance import source_key
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
@@ -150,8 +151,8 @@ def test_fits_are_cached_by_the_split_digest(train, monkeypatch, tmp_path):
 
 def test_split_digest_follows_content(train):
     same = make_source(3, split="train", seed=2, seconds=4.0)
-    assert fitting.source_digest(train) == fitting.source_digest(same)
-    assert fitting.source_digest(train) != fitting.source_digest(make_source(3, split="train", seed=8))
+    assert source_key(train) == source_key(same)
+    assert source_key(train) != source_key(make_source(3, split="train", seed=8))
 
 
 def test_fitted_baselines_need_a_train_split():

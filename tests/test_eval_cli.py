@@ -72,8 +72,9 @@ def test_eval_defaults_to_the_embedded_corpus_and_says_so(dualtalk_dir, tmp_path
                                       "--out", str(tmp_path / "e")])
     assert result.exit_code == 0, result.output
     assert "using the embedded synthetic corpus" in result.output
-    assert opened[0] == (None, "test") and (None, "train") in opened
-    assert load_result(tmp_path / "e" / "result.json").data.clips == 1
+    assert opened[0] == (None, None) and (None, "train") in opened  # no --split: the adapter's default
+    recorded = load_result(tmp_path / "e" / "result.json").data
+    assert recorded.clips == 1 and recorded.split == "test"
 
 
 def test_sweep_runs_n_0_3_7_and_adds_rows_without_rerunning(dualtalk_dir, tmp_path):

@@ -55,8 +55,10 @@ def test_long_table_has_one_row_per_model_setting_and_metric(results_dir):
 
 def test_wide_table_ranks_everyone_but_the_oracle(results_dir):
     wide = wide_table(long_table([results_dir]))
-    assert list(wide.columns[:8]) == ["source", "dataset", "split", "protocol", "context", "model", "oracle", "rank"]
-    assert list(wide.columns[8:12]) == ["items", "fd_exp", "fd_jaw", "fd_pose"] and wide.columns[-1] == "rpcc_pose"
+    assert list(wide.columns[:9]) == ["source", "dataset", "split", "protocol", "context", "model", "oracle",
+                                      "flags", "rank"]
+    assert list(wide.columns[9:13]) == ["items", "fd_exp", "fd_jaw", "fd_pose"] and wide.columns[-1] == "rpcc_pose"
+    assert (wide["flags"] == "").all()
     assert (wide["items"] == 4).all()
     for _, group in wide.groupby("context"):
         ranked = group[~group["oracle"]]

@@ -13,6 +13,7 @@ import click
 
 from dyadbench import atomic
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
+from dyadbench.cli.splits import open_splits
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
@@ -25,11 +26,21 @@ EMBEDDED = "synthetic"
 
 
 def data_options(f: Callable) -> Callable:
-    """--data / --dataset / --clips / --jobs / --threads, shared by ``eval`` and ``sweep``."""
+    """--data / --dataset / --train / --allow-train-overlap / --clips / --jobs / --threads, shared by ``eval``
+    and ``sweep`` (see :mod:`dyadbench.cli.splits`)."""
     options = [
         click.option("--data", "data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
-                     help="Dataset root (e.g. a DualTalk folder holding train/ test/ ood/). Without it the "
+                     help="Dataset root (e.g. a DualTalk folder holding train/ test/ ood/), or one split folder "
+                          "(evaluated as the split its name says; it holds no train split). Without it the "
                           "embedded synthetic corpus is used (generated into the cache on first use)."),
+        click.option("--train", "train", type=click.Path(exists=True, file_okay=False, path_type=Path),
+                     default=None,
+                     help="Train split for models fitted on one (baselines): a dataset root (its train/) or a "
+                          "split folder of the same layout. Default: the train split of the --data root or of "
+                          "the embedded corpus; needed when --data is a single split folder."),
+        click.option("--allow-train-overlap", "allow_train_overlap", is_flag=True,
+                     help="Run even when the train split holds evaluated clips (compared by content). The "
+                          "result records the overlap and leaderboards flag the row and never rank it."),
         click.option("--dataset", default=None, type=click.Choice(DATASETS.names()),
                      help="Dataset adapter. Default: 'synthetic' without --data, 'dualtalk' with --data."),
         click.option("--clips", default=None, type=click.IntRange(min=1),
@@ -74,26 +85,17 @@ def resolve_dataset(data: Path | None, dataset: str | None) -> str:
     return name
 
 
-def open_splits(data: Path | None, dataset: str, split: str) -> tuple[ClipSource, Callable[[], ClipSource]]:
-    """The evaluated split and a picklable opener of the same dataset's train split."""
-    from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415  (keeps --help light)
-
-    if data is None:
-        click.echo(f"using the embedded {dataset} corpus ({DATASETS.get(dataset).target}); "
-                   f"pass --data DIR for a dataset on disk", err=True)
-    source = open_dataset_split(dataset, data, split)
-    return source, functools.partial(open_dataset_split, dataset, data, "train")
-
-
 def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
             cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
-            predictions_dir: Path | None, extra: dict | None = None, threads: int | None = None) -> EvalResult:
+            predictions_dir: Path | None, extra: dict | None = None, threads: int | None = None,
+            check_configuration: Callable[[dict], None] | None = None) -> EvalResult:
+    """:func:`dyadbench.protocol.runner.evaluate` with the command line's options."""
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
     options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
                            extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
-                    predictions_dir=predictions_dir, threads=threads)
+                    predictions_dir=predictions_dir, threads=threads, check_configuration=check_configuration)
 
 
 def style_reference(source: ClipSource, style_from: str) -> str | object:
@@ -108,7 +110,8 @@ def style_reference(source: ClipSource, style_from: str) -> str | object:
 
 def summary(result: EvalResult) -> str:
     """Coverage line and a metric / raw / scaled table in the suite's column order."""
-    lines = [f"[{result.suite}] {result.model.name}{' (ORACLE)' if result.model.oracle else ''} on "
+    flags = f" [{result.flags()}: not ranked]" if result.flags() else ""
+    lines = [f"[{result.suite}] {result.model.name}{' (ORACLE)' if result.model.oracle else ''}{flags} on "
              f"{result.data.dataset}/{result.data.split}, {result.protocol.name} n={result.protocol.context}: "
              f"{result.coverage.get('scored', len(result.per_clip))} of {result.data.items} predictions scored"
              + (f", {len(result.excluded)} excluded" if result.excluded else ""),
@@ -165,7 +168,9 @@ def is_predictions_folder(folder: Path) -> bool:
 
 @click.command("eval")
 @click.option("--model", "model", required=True, help=f"Registered model ({', '.join(MODELS.names())}).")
-@click.option("--split", default="test", show_default=True, help="Split to evaluate: train, test or ood.")
+@click.option("--split", default=None,
+              help="Split of the --data root to evaluate: train, test or ood [default: test; for a single "
+                   "split folder, that folder, recorded under its name].")
 @click.option("--context", "-n", default=7, show_default=True, type=click.IntRange(min=0),
               help="History turns n given with the current turn (0 = none; TIMAR's main results use 7).")
 @protocol_options
@@ -180,10 +185,10 @@ def is_predictions_folder(folder: Path) -> bool:
                    "previous output untouched.")
 @click.option("--force", is_flag=True,
               help="Replace --out even when it holds files that are not a previous eval output.")
-def eval_command(model: str, split: str, context: int, turn_seconds: float, tail: str, history_agent: str,
-                 seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
-                 clips: int | None, jobs: int, threads: int | None, style_from: str | None, out: Path | None,
-                 force: bool) -> None:
+def eval_command(model: str, split: str | None, context: int, turn_seconds: float, tail: str,
+                 history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
+                 dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
+                 threads: int | None, style_from: str | None, out: Path | None, force: bool) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
@@ -198,12 +203,13 @@ def eval_command(model: str, split: str, context: int, turn_seconds: float, tail
     config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
                             seed=seed)
     name = resolve_dataset(data, dataset)
-    out = out or Path("runs") / f"{model}_{name}_{split}_n{context}"
     check_cache()
-    with eval_output(out, force).writing() as staging:
-        source, train = open_splits(data, name, split)
+    given = None if out is None else eval_output(out, force).check()  # before reading or digesting any data
+    source, train_split = open_splits(data, name, split, train=train, allow_overlap=allow_train_overlap)
+    out = out or Path("runs") / f"{model}_{name}_{source.split}_n{context}"
+    with (given or eval_output(out, force)).writing() as staging:
         extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
-        result = run_one(model, source, train, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
+        result = run_one(model, source, train_split, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
                          jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads)
         result = predictions_at(result, out / "predictions")
         save_result(result, staging / "result.json", out / "result.json")

@@ -27,13 +27,14 @@ def plot() -> None:
               help="Dataset root holding the ground truth (default: the embedded synthetic corpus).")
 @click.option("--dataset", default=None, type=click.Choice(DATASETS.names()),
               help="Dataset adapter (default: synthetic without --data, dualtalk with it).")
-@click.option("--split", default="test", show_default=True, help="Split the clip belongs to.")
+@click.option("--split", default=None,
+              help="Split the clip belongs to [default: test; for a single split folder as --data, that folder].")
 @click.option("--dims", default=None,
               help="Panels as component:index, e.g. exp:0,jaw:0,pose:1 (default: exp 0-1, jaw 0, pose 0-2; "
                    "gaze-head: head 0-2, gaze 0-3).")
 @click.option("--out", "out", required=True, type=click.Path(dir_okay=False, path_type=Path), help="PNG file.")
-def trajectories(predictions: Path, clip_id: str, agent: str, data: Path | None, dataset: str | None, split: str,
-                 dims: str | None, out: Path) -> None:
+def trajectories(predictions: Path, clip_id: str, agent: str, data: Path | None, dataset: str | None,
+                 split: str | None, dims: str | None, out: Path) -> None:
     """Prediction vs ground truth vs partner over time for one clip, one panel per dimension."""
     from dyadbench.motion import LAYOUTS  # noqa: PLC0415
     from dyadbench.plotting import parse_dims, plot_trajectories  # noqa: PLC0415

@@ -2,8 +2,12 @@
 
 Each run writes ``OUT/<dataset>/<split>/n<context>/<model>.json``, or ``<model>@<variant>.json`` when a
 protocol setting differs from the default (e.g. ``timar@cfg2.json`` for ``--cfg-scale 2``; see
-:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. Runs
-whose file exists are skipped (unless --force), so adding a model's rows never re-runs the others;
+:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. A run is
+skipped (unless --force) when its file holds a valid result whose recorded configuration
+(:mod:`dyadbench.protocol.run_configuration`: data and its content digest, --clips, settings, model
+version and weights digest, train split) equals the requested one, so adding a model's rows never
+re-runs the others; otherwise it is re-run and the reason printed. The model is built (baselines fitted,
+from their cache) before that comparison, and nothing is streamed for a skipped run.
 ``dyadbench leaderboard OUT`` then rebuilds the tables from every file.
 """
 
@@ -12,18 +16,20 @@ from __future__ import annotations
 import contextlib
 from dataclasses import replace
 from pathlib import Path
-from typing import Iterator
+from typing import Callable, Iterator
 
 import click
 
-from dyadbench.cli.eval import (data_options, is_predictions_folder, open_splits, predictions_at, protocol_options,
+from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
                                 resolve_dataset, run_one, save_result, summary)
 from dyadbench.cli.options import IntList
-from dyadbench.errors import ConfigError
+from dyadbench.cli.splits import sweep_splits
+from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import check_cache, check_folder, owned_folder
 from dyadbench.protocol.config import ProtocolConfig, variant_label
+from dyadbench.protocol.run_configuration import differences
 from dyadbench.registry import MODELS
-from dyadbench.results import EvalResult
+from dyadbench.results import EvalResult, load_result
 
 
 def result_path(out: Path, dataset: str, split: str, context: int, model: str, variant: str = "") -> Path:
@@ -51,6 +57,30 @@ def kept_predictions(folder: Path | None, force: bool) -> Iterator[Path | None]:
         yield staging
 
 
+class Unchanged(Exception):
+    """Raised before streaming when a stored result's configuration equals the requested one."""
+
+
+def reuse_check(path: Path) -> Callable[[dict], None] | None:
+    """What to do with an existing result file: None to re-run (the reason printed), or the check
+    :func:`~dyadbench.protocol.runner.evaluate` runs before streaming, which raises :class:`Unchanged` when
+    the recorded configuration equals the requested one and otherwise prints what differs."""
+    try:
+        recorded = load_result(path).configuration
+    except InputError as exc:
+        click.echo(f"re-running {path}: result file unreadable: {exc.problem}")
+        return None
+    if recorded is None:
+        click.echo(f"re-running {path}: the result file records no configuration (an older dyadbench wrote it)")
+        return None
+
+    def check(requested: dict) -> None:
+        if recorded == requested:
+            raise Unchanged
+        click.echo(f"re-running {path}: {'; '.join(differences(recorded, requested))}")
+    return check
+
+
 def _csv(value: str, what: str) -> list[str]:
     items = [v.strip() for v in value.split(",") if v.strip()]
     if not items:
@@ -61,7 +91,9 @@ def _csv(value: str, what: str) -> list[str]:
 @click.command()
 @click.option("--models", required=True,
               help="Comma-separated registered models, e.g. zero,mean-frame,oracle (see `dyadbench models`).")
-@click.option("--splits", default="test,ood", show_default=True, help="Comma-separated splits.")
+@click.option("--splits", default=None,
+              help="Comma-separated splits [default: test,ood; for a single split folder as --data, that "
+                   "folder alone, under its name].")
 @click.option("--contexts", "context_list", default="0,3,7", show_default=True, type=IntList(min=0),
               help="Comma-separated history lengths n (each >= 0).")
 @protocol_options
@@ -76,10 +108,10 @@ def _csv(value: str, what: str) -> list[str]:
               help="Keep per-clip metrics in each result file. --no-per-clip keeps the mean metrics only "
                    "(small files, e.g. results committed beside the leaderboards).")
 @click.option("--force", is_flag=True, help="Re-run and overwrite runs whose result file exists.")
-def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float, tail: str, history_agent: str,
-          seed: int, cfg_scale: float, weights: Path | None, data: Path | None, dataset: str | None,
-          clips: int | None, jobs: int, threads: int | None, out: Path, keep_predictions: Path | None,
-          per_clip: bool, force: bool) -> None:
+def sweep(models: str, splits: str | None, context_list: list[int], turn_seconds: float, tail: str,
+          history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
+          dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
+          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
     \b
@@ -96,8 +128,10 @@ def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float
     check_folder(out, f"--out {out}")
     if keep_predictions is not None:
         check_folder(keep_predictions, f"--keep-predictions {keep_predictions}")
-    for split in _csv(splits, "splits"):
-        source, train = open_splits(data, dataset_name, split)
+    runs = sweep_splits(data, dataset_name, None if splits is None else _csv(splits, "splits"), train=train,
+                        allow_overlap=allow_train_overlap)
+    for source, train_split in runs:
+        split = source.split
         for context in context_list:
             config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail,
                                     history_agent=history_agent, seed=seed)
@@ -105,14 +139,17 @@ def sweep(models: str, splits: str, context_list: list[int], turn_seconds: float
                                     cfg_scale=cfg_scale, seed=seed)
             for name in names:
                 path = result_path(out, dataset_name, split, context, name, variant)
-                if path.exists() and not force:
-                    click.echo(f"skip {path} (exists; --force re-runs)")
-                    continue
+                check = reuse_check(path) if path.exists() and not force else None
                 preds = (result_path(keep_predictions, dataset_name, split, context, name, variant).with_suffix("")
                          if keep_predictions else None)
-                with kept_predictions(preds, force) as staging:
-                    result = run_one(name, source, train, config, cfg_scale=cfg_scale, weights=weights,
-                                     clips=clips, jobs=jobs, predictions_dir=staging, threads=threads)
+                try:
+                    with kept_predictions(preds, force) as staging:
+                        result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
+                                         clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
+                                         check_configuration=check)
+                except Unchanged:
+                    click.echo(f"skip {path} (same configuration; --force re-runs)")
+                    continue
                 if preds is not None:
                     result = predictions_at(result, preds)
                 click.echo(summary(result).splitlines()[0] + f" -> {path}")

@@ -15,7 +15,7 @@ from typing import Iterator
 
 import numpy as np
 
-from dyadbench.errors import InputError
+from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import LAYOUTS, MotionLayout
 
 
@@ -115,13 +115,29 @@ def _check_speech_features(source: str, p: Participant) -> None:
         raise InputError(source, f"speech features must be floating point, got dtype {feats.dtype}")
 
 
+#: The split an adapter opens when asked for none (``open_split(root, None)``) and ``root`` is a dataset root.
+DEFAULT_SPLIT = "test"
+
+
+def split_folder_mismatch(folder: str | Path, name: str, split: str) -> ConfigError:
+    """The error for asking a single split folder for another split than the one it is."""
+    return ConfigError(f"{folder} is a single split folder ({name!r}), not a dataset root, so it has no "
+                       f"{split!r} split; pass the root folder that holds {split}/ instead (or split {name!r})")
+
+
 class ClipSource(abc.ABC):
-    """One split of one dataset, read lazily. Subclasses implement ``clip_ids`` and ``load``."""
+    """One split of one dataset, read lazily. Subclasses implement ``clip_ids`` and ``load``.
+
+    ``single_split`` is True when the adapter was given one split folder rather than a dataset root: the
+    source is then named by that folder (``split`` is the folder's name) and no other split, train
+    included, can be reached from it.
+    """
 
     dataset: str = "unknown"
     split: str = "unknown"
     root: Path | None = None
     suite: str | None = None  # metric suite `dyadbench eval` scores this dataset with (None: the layout's)
+    single_split: bool = False
 
     @abc.abstractmethod
     def clip_ids(self) -> list[str]:
@@ -137,6 +153,17 @@ class ClipSource(abc.ABC):
     def __iter__(self) -> Iterator[DyadicClip]:
         for clip_id in self.clip_ids():
             yield self.load(clip_id)
+
+    def participant_motions(self, clip_id: str) -> tuple[np.ndarray, ...]:
+        """The motion arrays of a clip's participants in clip order (what content digests hash,
+        :mod:`dyadbench.provenance`). Subclasses may read the motion files only."""
+        return tuple(p.motion for p in self.load(clip_id).participants)
+
+    def generated_by(self) -> dict | None:
+        """For a generated split whose content follows from its generator: the generator's identity
+        (name, version, source digest, seed, split), each clip determined by it and the clip id.
+        None for recorded data."""
+        return None
 
     def describe(self) -> dict:
         """Identification recorded in results."""

@@ -1,12 +1,14 @@
 """DualTalk split folders, read lazily: ``<clip>_speaker{1,2}.{wav,npz}`` in one flat folder per split.
 
 ``open_split(root, split)`` accepts the DualTalk root (holding ``train/``, ``test/``, ``ood/``) or a split
-folder itself. Opening a split only lists file names; a clip's files are read when it is loaded. Motion
-comes from the ground-truth ``.npz`` through :func:`dyadbench.datasets.dualtalk_files.load_gt_npz`
-(pose-half swap to [exp | jaw | head rotation]); speech is 16 kHz mono (the release stores 32-bit float;
-16-bit PCM is read too). Audio may differ from the motion's duration by up to ``DURATION_TOLERANCE_S``
-(the real release differs by about one frame); it is then zero-padded or cut to exactly
-``frames * 640`` samples. Larger differences are errors naming the file.
+folder itself; a split folder given alone is the split named by the folder (``source.split`` is its
+name and ``source.single_split`` is True), whatever split was asked for. Opening a split only lists
+file names; a clip's files are read when it is loaded. Motion comes from the ground-truth ``.npz``
+through :func:`dyadbench.datasets.dualtalk_files.load_gt_npz` (pose-half swap to [exp | jaw | head
+rotation]); speech is 16 kHz mono (the release stores 32-bit float; 16-bit PCM is read too). Audio
+may differ from the motion's duration by up to ``DURATION_TOLERANCE_S`` (the real release differs by
+about one frame); it is then zero-padded or cut to exactly ``frames * 640`` samples. Larger
+differences are errors naming the file.
 
 Loaded clips carry ``meta["speaking"]``: per-participant speech activity from the documented energy VAD
 (:mod:`dyadbench.features.activity`), since the release has no speech annotation.
@@ -23,7 +25,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dyadbench.arrays import load_npz, nonfinite_count
-from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant
 from dyadbench.datasets.dualtalk_files import EXP_DIM, GT_KEYS, POSE_DIM, load_gt_npz
 from dyadbench.datasets.statistics import motion_statistics
 from dyadbench.datasets.validation import ValidationReport
@@ -74,16 +76,18 @@ def _has_clip_files(folder: Path) -> bool:
 
 
 def split_folder(root: str | Path, split: str | None) -> Path:
-    """``root/split`` when it exists, else ``root`` itself when it holds DualTalk files."""
+    """``root/split`` when it exists, else ``root`` itself when it holds DualTalk files. ``split`` None:
+    ``root`` when it holds DualTalk files, else ``root/test``."""
     root = Path(root)
     if not root.is_dir():
         raise InputError(root, "DualTalk folder not found")
-    if split is not None and (root / split).is_dir():
-        return root / split
+    wanted = split or DEFAULT_SPLIT
+    if (split is not None or not _has_clip_files(root)) and (root / wanted).is_dir():
+        return root / wanted
     if _has_clip_files(root):
         return root
-    wanted = f"a {split}/ sub-folder or " if split else ""
-    raise InputError(root, f"expected {wanted}<clip>_speaker1.wav/.npz and <clip>_speaker2.wav/.npz files")
+    raise InputError(root, f"expected a {wanted}/ sub-folder or <clip>_speaker1.wav/.npz and "
+                           f"<clip>_speaker2.wav/.npz files")
 
 
 def fit_audio(audio: np.ndarray, frames: int, wav_path: Path) -> np.ndarray:
@@ -124,13 +128,22 @@ class DualTalkSource(ClipSource):
         """Dataset-specific additions to a clip's ``meta`` (a ``speaking`` entry replaces the VAD's)."""
         return {}
 
-    def load(self, clip_id: str) -> DyadicClip:
+    def _clip_files(self, clip_id: str) -> ClipFiles:
         files = self._files.get(clip_id)
         if files is None:
             if clip_id in self.incomplete:
                 missing = ", ".join(p.name for p in self.incomplete[clip_id])
                 raise InputError(self.root / clip_id, f"incomplete dialogue: missing {missing}")
             raise InputError(self.root, f"no dialogue {clip_id!r} in this folder")
+        return files
+
+    def participant_motions(self, clip_id: str) -> tuple[np.ndarray, ...]:
+        """The speakers' motion as :meth:`load` gives it, from the ``.npz`` files only."""
+        files = self._clip_files(clip_id)
+        return tuple(load_gt_npz(files.path(speaker, "npz")).astype(np.float32) for speaker in SPEAKERS)
+
+    def load(self, clip_id: str) -> DyadicClip:
+        files = self._clip_files(clip_id)
         participants = []
         for speaker in SPEAKERS:
             motion = load_gt_npz(files.path(speaker, "npz")).astype(np.float32)
@@ -150,11 +163,15 @@ class DualTalkSource(ClipSource):
         return info
 
 
-def open_split(root: str | Path | None, split: str) -> DualTalkSource:
-    """A lazily read DualTalk split: ``root/split`` (or ``root`` when it is the split folder)."""
+def open_split(root: str | Path | None, split: str | None) -> DualTalkSource:
+    """A lazily read DualTalk split: ``root/split`` (``root/test`` for None), or ``root`` itself when it is a
+    split folder (then named by the folder; see the module docstring)."""
     if root is None:
         raise InputError(None, "the dualtalk dataset needs --data pointing at the DualTalk folder")
-    source = DualTalkSource(split_folder(root, split), split)
+    folder = split_folder(root, split)
+    single = folder == Path(root)
+    source = DualTalkSource(folder, folder.resolve().name if single else split or DEFAULT_SPLIT)
+    source.single_split = single
     if source.incomplete:
         names = sorted(p.name for m in source.incomplete.values() for p in m)
         shown = ", ".join(names[:3]) + (f" and {len(names) - 3} more" if len(names) > 3 else "")
@@ -176,15 +193,20 @@ def _check_npz(path: Path, report: ValidationReport) -> int | None:
     if missing:
         report.error(path, f"missing key(s) {', '.join(missing)} (has: {', '.join(sorted(arrays)) or 'none'})")
         return None
-    frames = arrays["exp"].shape[0] if arrays["exp"].ndim else 0
-    usable = True
+    exp = arrays["exp"]
+    # the frame count comes from exp only when exp itself is (T, 50); otherwise only exp is blamed
+    frames = exp.shape[0] if exp.shape[1:] == (EXP_DIM,) else None
+    usable = frames is not None
     for key, tail in NPZ_FRAME_SHAPES.items():
         if key not in arrays:
             report.warn(path, f"no {key!r} array (the release has one; dyadbench does not need it)")
             continue
         a = arrays[key]
-        if a.shape != (frames, *tail):
-            report.error(path, f"{key} has shape {a.shape}, expected ({frames}, {', '.join(map(str, tail))})")
+        if a.shape[1:] != tail or a.shape[0] != (frames if frames is not None else a.shape[0]):
+            expected = "(" + ", ".join(map(str, (frames if frames is not None else "T", *tail))) + ")"
+            transposed = a.ndim == 1 + len(tail) and a.shape[:len(tail)] == tail[::-1]
+            report.error(path, f"{key} has shape {a.shape}, expected {expected}"
+                               + ("; it looks transposed" if transposed else ""))
             usable &= key not in GT_KEYS
         elif a.dtype.kind != "f":
             report.error(path, f"{key} has dtype {a.dtype}, expected floating point")

@@ -36,7 +36,7 @@ import numpy as np
 
 from dyadbench import atomic
 from dyadbench.arrays import check_motion, load_npz
-from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant, split_folder_mismatch
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.datasets.wav import read_wav, write_wav
 from dyadbench.errors import ConfigError, InputError
@@ -164,13 +164,14 @@ def fit_audio(audio: np.ndarray, frames: int, wav_path: Path, sample_rate: int =
 # --- adapter -------------------------------------------------------------------------------------------
 
 def resolve_root(path: Path, split: str | None) -> tuple[Path, str]:
-    """(root, split) from a corpus root (holding splits.csv) or a split folder inside one."""
+    """(root, split) from a corpus root (holding splits.csv; split None: test) or a split folder inside one
+    (split None or the folder's name)."""
     path = Path(path)
     if (path / INDEX).is_file():
-        return path, split or "test"
+        return path, split or DEFAULT_SPLIT
     if (path.parent / INDEX).is_file() and path.is_dir():
         if split not in (None, path.name):
-            raise ConfigError(f"{path} is the {path.name!r} split folder but split {split!r} was asked for")
+            raise split_folder_mismatch(path, path.name, split)
         return path.parent, path.name
     raise InputError(path, f"not a gaze-head root: no {INDEX} here or in the parent folder")
 
@@ -250,13 +251,16 @@ class GazeSource(ClipSource):
         return info
 
 
-def open_split(root: Path | None, split: str) -> GazeSource:
-    """The ``split`` of a gaze–head root (or of the split folder ``root``)."""
+def open_split(root: Path | None, split: str | None) -> GazeSource:
+    """The ``split`` of a gaze–head root, or the split folder ``root`` (``single_split``; asked for None or
+    its own name)."""
     if root is None:
         raise ConfigError("the gaze dataset reads a folder: pass its root (the folder holding splits.csv); "
                           "the embedded synthetic sessions are the 'synthetic-gaze' dataset")
-    root, split = resolve_root(Path(root), split)
-    return GazeSource(root, split)
+    base, split = resolve_root(Path(root), split)
+    source = GazeSource(base, split)
+    source.single_split = base != Path(root)
+    return source
 
 
 def synthetic_root() -> Path:
@@ -266,10 +270,11 @@ def synthetic_root() -> Path:
     return cache_dir() / f"synthetic-gaze-v{SYNTHETIC_VERSION}.{GENERATOR_VERSION}-seed{SYNTHETIC_SEED}"
 
 
-def open_synthetic_split(root: Path | None, split: str) -> GazeSource:
+def open_synthetic_split(root: Path | None, split: str | None) -> GazeSource:
     """The embedded synthetic gaze–head sessions: generated on first use into ``root`` (default: the cache)."""
     from dyadbench.synth.gaze import SPLITS, write_gaze_split
 
+    split = split or DEFAULT_SPLIT
     if split not in SPLITS:
         raise ConfigError(f"unknown synthetic gaze split {split!r} (known: {', '.join(SPLITS)})")
     in_cache = root is None  # the cache's split folders are dyadbench's own: replaced whatever they hold

@@ -31,7 +31,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dyadbench.arrays import load_npy
-from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.errors import InputError
 from dyadbench.motion import l2l_to_flame56
@@ -165,11 +165,11 @@ class L2LSource(ClipSource):
         return DyadicClip(clip_id, participants, fps=FPS, layout="flame56", meta=meta, agents=(AGENT,))
 
 
-def open_split(root: str | Path | None, split: str) -> L2LSource:
-    """All hosts' windows of ``split`` (train or test) under ``root``."""
+def open_split(root: str | Path | None, split: str | None) -> L2LSource:
+    """All hosts' windows of ``split`` (train or test; None: test) under ``root``."""
     if root is None:
         raise InputError(None, "the l2l dataset needs --data pointing at the Learning2Listen folder")
-    return L2LSource(Path(root), split)
+    return L2LSource(Path(root), split or DEFAULT_SPLIT)
 
 
 def ground_truth(root: str | Path, split: str) -> tuple[list[str], np.ndarray, np.ndarray]:

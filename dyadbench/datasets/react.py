@@ -34,7 +34,7 @@ import pandas as pd
 from tqdm import tqdm
 
 from dyadbench.arrays import load_npy
-from dyadbench.datasets.base import ClipSource, DyadicClip, Participant
+from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.errors import InputError
 from dyadbench.motion import LAYOUTS, MotionLayout
@@ -228,11 +228,11 @@ class ReactSource(ClipSource):
                           meta={"paths": dict(zip(("speaker1", "speaker2"), rels)), "audio_paths": audio})
 
 
-def open_split(root: str | Path | None, split: str) -> ReactSource:
-    """The dialogues of ``root/<split>.csv`` (lazily read)."""
+def open_split(root: str | Path | None, split: str | None) -> ReactSource:
+    """The dialogues of ``root/<split>.csv`` (split None: test), lazily read."""
     if root is None:
         raise InputError(None, "the react dataset needs --data pointing at the REACT root folder")
-    return ReactSource(ReactSplit.open(root, split))
+    return ReactSource(ReactSplit.open(root, split or DEFAULT_SPLIT))
 
 
 # --- validation ---------------------------------------------------------------------------------------

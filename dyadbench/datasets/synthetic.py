@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyadbench.datasets.base import DEFAULT_SPLIT
 from dyadbench.datasets.dualtalk import DualTalkSource
 from dyadbench.errors import InputError
 from dyadbench.features.activity import segments_mask
@@ -112,14 +113,20 @@ class SyntheticSource(DualTalkSource):
                            for who, events in record["events"].items()},
                 "generator": {k: self._marker[k] for k in ("generator", "version", "seed", "split", "style_pool")}}
 
+    def generated_by(self) -> dict:
+        """The generator identity of the split's marker: clip ``i`` depends only on it and ``i``."""
+        return {k: self._marker[k] for k in ("generator", "version", "generator_digest", "seed", "split")}
+
     def describe(self) -> dict:
         info = super().describe()
         info.update(generator_version=GENERATOR_VERSION, seed=DEFAULT_SEED)
         return info
 
 
-def open_split(root: Path | None, split: str) -> SyntheticSource:
-    """The default corpus split (generated on first use into ``root`` or the cache), read lazily."""
+def open_split(root: Path | None, split: str | None) -> SyntheticSource:
+    """The default corpus split (``split`` None: test; generated on first use into ``root`` or the cache),
+    read lazily."""
+    split = split or DEFAULT_SPLIT
     default_size(split)  # rejects unknown split names before anything is written
     base = corpus_root() if root is None else Path(root)
     folder = base / split

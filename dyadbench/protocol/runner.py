@@ -30,6 +30,7 @@ from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 from tqdm import tqdm
@@ -40,7 +41,10 @@ from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions, OfflineModel, StreamingModel
 from dyadbench.protocol.offline import run_offline
+from dyadbench.protocol.run_configuration import requested_configuration
 from dyadbench.protocol.streaming import StreamOutput, stream_agent
+from dyadbench.protocol.train_split import bind_train_split, overlap_notes, train_record
+from dyadbench.provenance import split_digest
 from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import (DataRecord, EvalResult, ModelRecord, ProtocolRecord, TimingRecord, environment,
                                utc_now)
@@ -119,7 +123,8 @@ def _worker_clip(clip_id: str) -> list[_Streamed]:
 
 def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, options: ModelOptions | None = None,
              clips: int | None = None, jobs: int = 1, predictions_dir: Path | None = None,
-             progress: bool = True, threads: int | None = None) -> EvalResult:
+             progress: bool = True, threads: int | None = None,
+             check_configuration: Callable[[dict], None] | None = None) -> EvalResult:
     """Run ``model_name`` over ``source`` under ``config`` and score it (see module docstring).
 
     ``predictions_dir``: where ``<stem>.npy`` files go (None: a temporary folder, removed after scoring).
@@ -128,6 +133,10 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     ``threads``: CPU threads per process (None: the libraries' default in-process, 1 per worker). Per-turn
     work of small models is too fine-grained to gain from threads, and threads beyond the free cores
     (another job running) can make streaming an order of magnitude slower.
+    A :class:`~dyadbench.protocol.train_split.TrainSplit` in ``options.train_split`` is bound to the evaluated
+    clips (a model fitted on some of them is refused unless it allows overlap) and recorded in the result.
+    ``check_configuration``: called with the run's :func:`requested_configuration` once the model is built,
+    before any clip is streamed (an exception it raises stops the run; ``sweep`` uses it to skip unchanged runs).
     """
     started = time.perf_counter()
     ids = source.clip_ids()
@@ -142,12 +151,19 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         raise ConfigError(f"no metric suite for motion layout {layout!r}")
     suite = source.suite or SUITE_OF_LAYOUT[layout]
     options = options or ModelOptions(seed=config.seed)
-    options = replace(options, extra={**options.extra, "layout": layout, "turn_seconds": config.turn_seconds})
+    options = replace(options, train_split=bind_train_split(options.train_split, source, ids),
+                      extra={**options.extra, "layout": layout, "turn_seconds": config.turn_seconds})
     model = build_model(model_name, options)
     if threads is not None:
         set_threads(threads)
     if model.info.layout != layout:
         raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion; the split is {layout}")
+    train = train_record(options.train_split)
+    data_digest = split_digest(source, ids)
+    requested = requested_configuration(model_name, model.info, source, clips, config, options.cfg_scale,
+                                        data_digest, train)
+    if check_configuration is not None:
+        check_configuration(requested)
     keep_audio = suite == "gaze"
 
     temporary = predictions_dir is None
@@ -179,19 +195,21 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                           weights_path=info.weights_path, oracle=bool(info.oracle), layout=info.layout,
                           config=dict(info.config)),
         data=DataRecord(dataset=source.dataset, split=source.split,
-                        root=str(source.root) if source.root else None, clips=len(ids), items=len(items)),
+                        root=str(source.root) if source.root else None, clips=len(ids), items=len(items),
+                        digest=data_digest, train=train),
         protocol=ProtocolRecord(name=protocol_name, turn_seconds=config.turn_seconds, context=config.context,
                                 tail=config.tail, history_agent=config.history_agent,
                                 cfg_scale=float(options.cfg_scale), seed=config.seed),
         suite=suite, metrics=dict(report.metrics), scaled=dict(report.scaled),
         scaling={c.key: c.scale for c in report.columns} or {k: 1.0 for k in report.metrics},
         per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
-        notes=list(report.notes) + ([f"scores reused: this process already scored byte-identical predictions "
-                                     f"(sha256 {reused[:16]})"] if reused else []),
+        notes=overlap_notes(train) + list(report.notes)
+        + ([f"scores reused: this process already scored byte-identical predictions "
+            f"(sha256 {reused[:16]})"] if reused else []),
         predictions=None if temporary else str(pred_dir),
         timing=TimingRecord(wall_s=time.perf_counter() - started, model_s=model_s, turns=len(latencies),
                             mean_turn_latency_s=model_s / max(len(latencies), 1), threads=threads),
-        environment=environment(), created_utc=utc_now())
+        environment=environment(), created_utc=utc_now(), configuration=requested)
 
 
 _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()
