@@ -37,7 +37,9 @@ class ModelInfo:
 
 @dataclass(frozen=True)
 class ModelOptions:
-    """Everything a model factory may use. ``train_split`` opens the train split lazily (baselines)."""
+    """Everything a model factory may use. ``train_split`` opens the train split lazily (baselines); the
+    command line gives a :class:`~dyadbench.protocol.train_split.TrainSplit`, refused when it holds evaluated
+    clips."""
 
     weights: Path | None = None
     seed: int = 0
