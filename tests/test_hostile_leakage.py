@@ -13,14 +13,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from dyadbench import provenance
 from dyadbench.cli.splits import open_evaluated, train_opener
-from dyadbench.datasets import gaze
+from dyadbench.datasets import dualtalk, gaze
+from dyadbench.datasets.base import InMemorySource
 from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import ConfigError
 from dyadbench.results import EvalResult, load_result, result_files
 from dyadbench.synth.gaze import write_gaze_split
 from tests.hostile_cli import dyadbench, error_line, write_dialogues
-from tests.protocol_clips import isolated_cache  # noqa: F401
+from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -152,6 +154,36 @@ def test_gaze_split_folders_follow_the_same_rules(tmp_path):
         open_evaluated("gaze", tmp_path / "test", "ood")
     with pytest.raises(ConfigError, match="--train DIR"):
         train_opener("gaze", tmp_path / "test", alone, None, False)()
+
+
+def test_clip_digests_are_cached_until_a_file_changes(root, tmp_path, monkeypatch):
+    folder = shutil.copytree(root / "test", tmp_path / "test")
+    first = provenance.clip_digests(dualtalk.open_split(folder, None))
+    assert len(set(first.values())) == 2
+    source = dualtalk.open_split(folder, None)
+    monkeypatch.setattr(source, "participant_motions", lambda clip_id: pytest.fail("read a clip"))
+    assert provenance.clip_digests(source) == first  # the second time nothing is read
+    write_dialogues(folder, "test", 1, seed=9)  # synth_test_00000 now holds another dialogue
+    again = provenance.clip_digests(dualtalk.open_split(folder, None))
+    assert again["synth_test_00000"] != first["synth_test_00000"]
+    assert again["synth_test_00001"] == first["synth_test_00001"]
+
+
+class Generated(InMemorySource):
+    """An in-memory split that says which generator made it (like the embedded corpus)."""
+
+    def generated_by(self) -> dict:
+        return {"generator": "test", "version": 1, "seed": 0, "split": self.split}
+
+
+def test_splits_of_one_generator_are_compared_without_reading_clips():
+    train, test = (make_source(2, split=s, seed=1) for s in ("train", "test"))  # same content, other names
+    as_generated = {s.split: Generated(list(s), dataset="gen", split=s.split) for s in (train, test)}
+    ids = test.clip_ids()
+    assert provenance.shared_clips(train, test, ids) == [(c, c) for c in ids]  # by content
+    assert provenance.shared_clips(as_generated["train"], as_generated["test"], ids) == []  # seeded by split
+    assert provenance.shared_clips(as_generated["test"], as_generated["test"], ids) == [(c, c) for c in ids]
+    assert provenance.split_digest(as_generated["test"]) != provenance.split_digest(as_generated["train"])
 
 
 def test_every_committed_result_file_loads():
