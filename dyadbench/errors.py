@@ -1,7 +1,8 @@
 """Error types raised on bad user input.
 
 Every error that reaches a user names the file (or array) and what was wrong with it; the CLI prints
-the message without a traceback.
+the message without a traceback. Every error type pickles to itself (same type, same message), so an
+error raised in a worker process reaches the user exactly as it would with one process.
 """
 
 from __future__ import annotations
@@ -23,6 +24,11 @@ class InputError(DyadbenchError, ValueError):
         self.source = str(source) if source is not None else None
         self.problem = problem
         super().__init__(f"{self.source}: {problem}" if self.source else problem)
+
+    def __reduce__(self):
+        # Rebuilt from (source, problem), not from the formatted message, so the error survives the trip
+        # back from a worker process (pickling) unchanged.
+        return type(self), (self.source, self.problem)
 
 
 class ConfigError(DyadbenchError, ValueError):

@@ -21,12 +21,17 @@ SAMPLE_RATE = 16_000
 
 @dataclass(frozen=True)
 class MotionLayout:
-    """A named per-frame motion vector with named component slices."""
+    """A named per-frame motion vector with named component slices.
+
+    ``plausible_abs`` bounds the magnitude of any value of real motion in ``units`` with a wide margin;
+    a file with larger values is scored with a warning naming it (:mod:`dyadbench.scoring.policy`).
+    """
 
     name: str
     dim: int
     components: dict[str, slice]
     units: str
+    plausible_abs: float
 
     def component(self, motion: np.ndarray, name: str) -> np.ndarray:
         return motion[..., self.components[name]]
@@ -37,6 +42,9 @@ FLAME56 = MotionLayout(
     dim=56,
     components={"exp": slice(0, 50), "jaw": slice(50, 53), "pose": slice(53, 56)},
     units="FLAME coefficients (exp), axis-angle radians (jaw, pose)",
+    # expression coefficients are in units of the FLAME basis' standard deviations (|x| of a few in real
+    # and synthetic data); a rotation angle is at most pi radians
+    plausible_abs=100.0,
 )
 EXP, JAW, POSE = (FLAME56.components[c] for c in ("exp", "jaw", "pose"))
 FLAME_COMPONENTS = ("exp", "jaw", "pose")
@@ -46,6 +54,7 @@ GAZE7 = MotionLayout(
     dim=7,
     components={"head": slice(0, 3), "gaze": slice(3, 7), "all": slice(0, 7)},
     units="degrees: head pitch, yaw, roll; left-eye pitch, yaw; right-eye pitch, yaw",
+    plausible_abs=360.0,  # a full turn: no head or eye angle in degrees goes beyond it
 )
 
 LAYOUTS = {FLAME56.name: FLAME56, GAZE7.name: GAZE7}

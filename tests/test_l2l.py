@@ -168,7 +168,7 @@ def test_cli_end_to_end(tmp_path):
     assert saved["metrics"]["l2_exp"] == 0.0 and saved["metrics"]["rpcc_pose"] == 0.0
     assert saved["coverage"]["missing"] == [stems[-1]]
     np.savez(tmp_path / "wrong.npz", other=listener[0])
-    with pytest.raises(InputError, match="no prediction named like"):
+    with pytest.raises(InputError, match="named like no ground-truth item"):
         score_paths(tmp_path / "wrong.npz", root)
 
 

@@ -122,7 +122,8 @@ def test_nan_prediction_is_excluded_and_listed(dataset, tmp_path, capsys):
     assert code == 0
     assert "scored 5 of 6" in out and "dlgA_speaker2 (1 NaN/inf values" in out
     results, frame = _results(tmp_path / "res")
-    assert results["excluded"] == [{"clip": "dlgA_speaker2", "reason": "1 NaN/inf values in the prediction"}]
+    reason = f"1 NaN/inf values (first at index (5, 7)) in {pred / 'dlgA_speaker2.npy'}"
+    assert results["excluded"] == [{"clip": "dlgA_speaker2", "reason": reason}]
     assert "dlgA_speaker2" not in set(frame["clip"])
     assert all(math.isfinite(v) for v in results["metrics"].values())
     code, _, err = run(capsys, pred, "--gt", gt, "--strict")
@@ -180,8 +181,9 @@ def test_empty_inputs(dataset, tmp_path, capsys):
 def test_bad_prediction_name(dataset, capsys):
     gt, pred = dataset
     np.save(pred / "dlgA_listener.npy", np.zeros((T, 56)))
-    code, _, err = run(capsys, pred, "--gt", gt)
-    assert code == 2 and "dlgA_listener.npy" in err and "_speaker1" in err
+    code, out, _ = run(capsys, pred, "--gt", gt, "--strict")  # a name without ground truth: extra, not fatal
+    assert code == 0 and "1 prediction(s) without ground truth" in out and "dlgA_listener" in out
+    assert "named like dlgA_speaker1" in out
 
 
 def test_length_mismatch_is_truncated_and_counted(dataset, tmp_path, capsys):
@@ -270,12 +272,21 @@ def test_split_names_a_sub_folder_of_the_root(dataset, tmp_path, capsys):
     assert code == 2 and "ood" in err and "split folder" in err
 
 
-def test_all_missing_ground_truth_is_counted(dataset, tmp_path, capsys):
+def test_predictions_without_ground_truth_are_extra_not_fatal(dataset, tmp_path, capsys):
     gt, pred = dataset
     for f in gt.glob("dlgC_*.npz"):
         f.unlink()
+    code, out, _ = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res", "--strict")
+    assert code == 0 and "scored 4 of 4" in out and "2 prediction(s) without ground truth" in out
+    assert _results(tmp_path / "res")[0]["coverage"]["extra"] == ["dlgC_speaker1", "dlgC_speaker2"]
+
+
+def test_all_missing_partner_ground_truth_is_counted(dataset, tmp_path, capsys):
+    gt, pred = dataset
+    for clip in ("dlgB", "dlgC"):
+        (gt / f"{clip}_speaker2.npz").unlink()
     code, _, err = run(capsys, pred, "--gt", gt)
-    assert code == 2 and "dlgC_speaker1.npz" in err and "and 3 more ground-truth files are missing" in err
+    assert code == 2 and "dlgB_speaker2.npz" in err and "and 1 more ground-truth files are missing" in err
 
 
 def test_a_clip_whose_metrics_fail_is_excluded_not_fatal(monkeypatch):

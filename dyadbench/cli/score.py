@@ -11,6 +11,7 @@ from dyadbench import atomic
 from dyadbench.cli.options import SEED
 from dyadbench.outputs import check_folder, kept_on_failure
 from dyadbench.registry import SUITES
+from dyadbench.scoring import policy
 
 
 @click.command()
@@ -29,7 +30,8 @@ from dyadbench.registry import SUITES
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes for per-clip metrics.")
 @click.option("--strict", is_flag=True,
-              help="Exit non-zero when any expected prediction is missing or excluded (NaN, bad shape).")
+              help="Exit non-zero when any expected prediction is missing or excluded (NaN/inf values, too "
+                   "few frames). Predictions without ground truth are listed, never fatal.")
 @click.option("--seed", default=0, show_default=True, type=SEED,
               help="Seed for the randomised metrics (diversity index draws); recorded in the result.")
 def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None, jobs: int,
@@ -47,8 +49,9 @@ def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None,
     score_paths = SUITES.load(suite)
     report = score_paths(pred, gt, split=split, jobs=jobs, seed=seed)
     click.echo(f"[{suite}] {report.coverage_line()}")
-    for note in report.notes:
-        click.echo(f"note: {note}")
+    for note in report.notes:  # warnings (implausible values, named by file) go to stderr
+        warning = note.startswith(policy.WARNING)
+        click.echo(note if warning else f"note: {note}", err=warning)
     click.echo(report.table())
     if out is not None:
         with kept_on_failure(out / "results.json", lambda: atomic.to_json(report.to_dict())):

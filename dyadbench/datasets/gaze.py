@@ -14,7 +14,8 @@ On-disk layout (one speaker per session; HAGE-style recordings, or the synthetic
 
 Reading a session (:func:`open_split`):
 
-- Frames with any |angle| > ``angle_limit_deg`` (40°, HAGE's filter) or ``valid`` False are dropped;
+- Frames with any |angle| > ``angle_limit_deg`` (40°, HAGE's filter) or ``valid`` False are dropped
+  (NaN/inf angles are allowed in ``valid`` False frames only; elsewhere they are an error naming the file);
   the session is cut at those frames into contiguous segments (never joined across a gap) and
   segments shorter than ``min_segment_frames`` (75 = 3 s) are discarded. A session with no dropped
   frame is one clip named ``<session>``; otherwise each kept segment is a clip ``<session>-f<first frame>``.
@@ -35,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from dyadbench import atomic
-from dyadbench.arrays import check_motion, load_npz
+from dyadbench.arrays import check_motion, check_values, load_npz
 from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant, split_folder_mismatch
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.datasets.wav import read_wav, write_wav
@@ -114,7 +115,9 @@ class SessionFile:
 
 
 def read_session(npz_path: Path) -> SessionFile:
-    """Read and check ``<session>.npz``; every problem is an InputError naming the file and key."""
+    """Read and check ``<session>.npz``; every problem is an InputError naming the file and key.
+
+    NaN/inf angles are allowed only in frames marked ``valid`` False (tracker loss)."""
     arrays = load_npz(npz_path)
     for key in ("motion", "fps", "speaker"):
         if key not in arrays:
@@ -134,6 +137,11 @@ def read_session(npz_path: Path) -> SessionFile:
             if m.dtype != bool or m.shape != (len(motion),):
                 raise InputError(f"{npz_path}[{key}]", f"must be bool ({len(motion)},), got {m.dtype} {m.shape}")
             masks[key] = m
+    tracked = masks["valid"][:, None] if "valid" in masks else True
+    try:
+        check_values(np.where(tracked, motion, 0.0), f"{npz_path}[motion]")
+    except InputError as exc:
+        raise InputError(exc.source, f"{exc.problem}; mark frames of tracker loss valid=False") from None
     return SessionFile(npz_path.stem, motion, str(speaker), float(fps), masks.get("speaking"), masks.get("valid"))
 
 
@@ -195,14 +203,16 @@ class GazeSource(ClipSource):
         self.dropped_frames = 0
         self.discarded_segments = 0
 
-    def _npz(self, session: str) -> Path:
+    def session_path(self, session: str) -> Path:
+        """The ``.npz`` file of a session of this split."""
         return self.root / self.split / f"{session}.npz"
 
-    def _session(self, session: str) -> SessionFile:
+    def session(self, session: str) -> SessionFile:
+        """A session of this split as stored (every frame, before the dropping rules), read once."""
         if session not in self._sessions:
-            data = read_session(self._npz(session))
+            data = read_session(self.session_path(session))
             if data.speaker != self._speakers[session]:
-                raise InputError(self._npz(session), f"speaker {data.speaker!r} differs from {INDEX}'s "
+                raise InputError(self.session_path(session), f"speaker {data.speaker!r} differs from {INDEX}'s "
                                                      f"{self._speakers[session]!r}")
             self._sessions[session] = data
         return self._sessions[session]
@@ -211,7 +221,7 @@ class GazeSource(ClipSource):
         if self._clips is None:
             clips = {}
             for session in sorted(self._speakers):
-                data = self._session(session)
+                data = self.session(session)
                 keep = keep_mask(data, self.angle_limit_deg)
                 kept = segments(keep, self.min_segment_frames)
                 self.dropped_frames += int(len(keep) - keep.sum())
@@ -231,7 +241,7 @@ class GazeSource(ClipSource):
             session, a, b = self._segment_all()[clip_id]
         except KeyError:
             raise InputError(f"{self.root}/{self.split}", f"no clip {clip_id!r}") from None
-        data = self._session(session)
+        data = self.session(session)
         wav_path = self.root / self.split / f"{session}.wav"
         audio = read_wav(wav_path, sample_rate=SAMPLE_RATE)
         hop = int(round(SAMPLE_RATE / FPS))

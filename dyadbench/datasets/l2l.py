@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 from tqdm import tqdm
 
-from dyadbench.arrays import load_npy
+from dyadbench.arrays import check_values, load_npy, require_float, shape_problem
 from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.errors import InputError
@@ -92,12 +92,11 @@ class HostSplit:
         path = self.path(person, kind)
         array = load_npy(path)
         if array.ndim != 1 + len(tail) or array.shape[1:] != tail:
-            raise InputError(path, f"expected (N, {', '.join(map(str, tail))}), got {array.shape}")
+            expected = f"(N, {', '.join(map(str, tail))})"
+            raise InputError(path, shape_problem(array.shape, expected, transposed=array.shape[1:] == tail[::-1]))
         if kind != "speak_files":
-            if array.dtype.kind != "f":
-                raise InputError(path, f"expected floating point, got dtype {array.dtype}")
-            if not np.isfinite(array).all():
-                raise InputError(path, f"contains {int((~np.isfinite(array)).sum())} NaN/inf values")
+            require_float(array, path)
+            check_values(array, path)
         return array
 
     @cached_property
@@ -115,6 +114,11 @@ class HostSplit:
     @cached_property
     def speaker_files(self) -> np.ndarray:
         return self._read(1 - self.listener, "speak_files", (WINDOW, 3))
+
+    def motion_files(self) -> list[tuple[Path, np.ndarray]]:
+        """(file, (N, 64, 184) array) of the listener's and the speaker's faces."""
+        return [(self.path(self.listener, "list_faces"), self.listener_faces),
+                (self.path(1 - self.listener, "speak_faces"), self.speaker_faces)]
 
     def count(self) -> int:
         """Number of paired windows; every paired array must agree."""
@@ -174,8 +178,13 @@ def open_split(root: str | Path | None, split: str | None) -> L2LSource:
 
 def ground_truth(root: str | Path, split: str) -> tuple[list[str], np.ndarray, np.ndarray]:
     """(prediction stems ``<clip>_listener``, listener (N, 64, 56), speaker (N, 64, 56)) in flame56."""
+    return stack_ground_truth(host_splits(root, split), split)
+
+
+def stack_ground_truth(hosts: list[HostSplit], split: str) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """:func:`ground_truth` of the given host splits."""
     stems, listener, speaker = [], [], []
-    for hs in host_splits(root, split):
+    for hs in hosts:
         n = hs.count()
         stems += [f"{hs.host}_{split}_{i:05d}_{AGENT}" for i in range(n)]
         listener.append(l2l_to_flame56(hs.listener_faces).astype(np.float64))

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 from tqdm import tqdm
 
-from dyadbench.arrays import load_npy
+from dyadbench.arrays import check_values, load_npy, require_file, shape_problem
 from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant
 from dyadbench.datasets.validation import ValidationReport
 from dyadbench.errors import InputError
@@ -55,6 +55,7 @@ REACT25 = MotionLayout(
     dim=EMOTION_DIM,
     components={"au": slice(0, 15), "va": slice(15, 17), "expression": slice(17, 25)},
     units="15 binary action units, valence and arousal, 8 expression probabilities",
+    plausible_abs=10.0,  # every feature lies in [-1, 1] (AUs 0/1, valence/arousal, probabilities)
 )
 LAYOUTS.setdefault(REACT25.name, REACT25)
 
@@ -97,24 +98,27 @@ def mirrored(pairs: list[tuple[str, str]]) -> list[tuple[str, str]]:
 
 
 def read_emotion(path: Path) -> np.ndarray:
-    """(frames, 25) float32 from an Emotion csv (one header line); errors name the file."""
-    if not path.is_file():
-        raise InputError(path, "emotion csv not found")
+    """(frames, 25) float32 from an Emotion csv (one header line); errors name the file.
+
+    Values must be finite and within float32's range once rounded to it (the official loader's precision)."""
+    require_file(path)
     try:
         table = pd.read_csv(path, header=0, float_precision="round_trip")
     except (ValueError, OSError, pd.errors.ParserError) as exc:
         raise InputError(path, f"unreadable csv ({exc})") from None
     if table.shape[1] != EMOTION_DIM:
-        raise InputError(path, f"expected {EMOTION_DIM} columns, got {table.shape[1]}")
+        transposed = len(table) in (EMOTION_DIM - 1, EMOTION_DIM)  # a header line may have taken a row
+        expected = f"{EMOTION_DIM} columns, one row per frame (T, {EMOTION_DIM})"
+        raise InputError(path, shape_problem((len(table), table.shape[1]), expected, transposed))
     try:
         values = table.to_numpy(dtype=np.float64)
     except (ValueError, TypeError):
         raise InputError(path, "contains non-numeric values") from None
     if len(values) == 0:
         raise InputError(path, "has no frames")
-    if not np.isfinite(values).all():
-        raise InputError(path, f"contains {int((~np.isfinite(values)).sum())} NaN/inf values")
-    return values.astype(np.float32)
+    values = values.astype(np.float32)
+    check_values(values, path)
+    return values
 
 
 def read_fv(path: Path) -> np.ndarray:

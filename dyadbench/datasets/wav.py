@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyadbench.arrays import require_file
 from dyadbench.atomic import write_bytes
 from dyadbench.errors import InputError
 
@@ -50,7 +51,7 @@ def float_to_pcm16(audio: np.ndarray) -> np.ndarray:
 
 def wav_info(path: str | Path) -> WavInfo:
     """Parse the header of a WAV file (no samples read); raises InputError on anything malformed."""
-    path = Path(path)
+    path = require_file(path)
     try:
         with open(path, "rb") as f:
             head = f.read(12)

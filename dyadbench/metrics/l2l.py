@@ -88,10 +88,13 @@ def sequence_metrics(p: np.ndarray, g: np.ndarray, a: np.ndarray, params: L2LPar
 
 
 def split_metrics(preds: list[np.ndarray], gts: list[np.ndarray], speakers: list[np.ndarray],
-                  params: L2LParams = L2LParams()) -> tuple[dict[str, float], list[dict]]:
+                  params: L2LParams = L2LParams(),
+                  per_sequence: list[dict] | None = None) -> tuple[dict[str, float], list[dict]]:
     """The suite over a split: ``(metrics, per_sequence)``; ``metrics`` keyed :func:`keys`.
 
     Sequence i's prediction, ground truth and speaker are cut to their shortest common length.
+    ``per_sequence``: the :func:`sequence_metrics` of those cut sequences when the caller computed them
+    already (a scorer leaving out sequences whose Fréchet distance is undefined).
     """
     preds, gts, speakers = (_check(x, n) for x, n in ((preds, "prediction"), (gts, "ground truth"),
                                                        (speakers, "speaker")))
@@ -99,7 +102,8 @@ def split_metrics(preds: list[np.ndarray], gts: list[np.ndarray], speakers: list
         raise InputError(None, f"need as many predictions, ground truths and speakers (>= 1), got "
                                f"{len(preds)}, {len(gts)}, {len(speakers)}")
     triples = [dualtalk.truncate_to_shortest(p, g, a) for p, g, a in zip(preds, gts, speakers)]
-    per_sequence = [sequence_metrics(p, g, a, params) for p, g, a in triples]
+    if per_sequence is None:
+        per_sequence = [sequence_metrics(p, g, a, params) for p, g, a in triples]
     pooled = [np.concatenate([t[i] for t in triples]) for i in range(3)]
     metrics: dict[str, float] = {}
     for c in params.components:

@@ -1,10 +1,12 @@
 """The REACT 2023/2024 metric suite on 25-d emotion features: FRCorr, FRDist, FRDiv, FRVar, FRDvs, FRSyn.
 
 Inputs (see ``metrics-react.md``): predictions P (N, R, T, 25) with R reactions per speaker sample,
-listener ground truth L (N, T, 25), speaker ground truth Sp (N, T, 25), all in the same (mirrored)
-sample order, and the appropriateness matrix S (N, N): ``S[k, j] == 1`` means the real listener
-reaction of sample j is appropriate for speaker k. Feature columns: 0-14 action units, 15-16 valence
-and arousal, 17-24 expression probabilities.
+speaker ground truth Sp (N, T, 25) in the same (mirrored) sample order, the real listener reactions
+L (M, T, 25) and the appropriateness matrix S (N, M): ``S[k, j] == 1`` means the real listener reaction
+j is appropriate for speaker k. Normally M = N and L[j] is sample j's own listener; a scorer that
+leaves some samples' predictions out passes the rows of S of the samples it scores and keeps every
+real reaction (M > N). Feature columns: 0-14 action units, 15-16 valence and arousal, 17-24
+expression probabilities.
 
 Like the official pipeline, which holds every array as float32, all inputs are rounded to float32;
 the arithmetic is then float64. FRDist equals the official tslearn loop bit for bit (same DTW
@@ -87,8 +89,8 @@ def _as_float32(array, name: str, ndim: int) -> np.ndarray:
 def neighbour_lists(neighbours: np.ndarray, name: str = "neighbours") -> tuple[np.ndarray, np.ndarray]:
     """CSR form (indptr, indices) of ``neighbours == 1``; a row without any neighbour is an error."""
     s = np.asarray(neighbours)
-    if s.ndim != 2 or s.shape[0] != s.shape[1]:
-        raise InputError(name, f"expected a square (N, N) matrix, got shape {s.shape}")
+    if s.ndim != 2:
+        raise InputError(name, f"expected an (N, M) matrix, got shape {s.shape}")
     selected = s == 1
     counts = selected.sum(axis=1)
     empty = np.flatnonzero(counts == 0)
@@ -100,7 +102,9 @@ def neighbour_lists(neighbours: np.ndarray, name: str = "neighbours") -> tuple[n
 
 
 def check_inputs(predictions, listener, speaker, neighbours, reactions: int | None = REACTIONS):
-    """Validate shapes/values; return (P, L, Sp) float32 and the neighbour lists (indptr, indices)."""
+    """Validate shapes/values; return (P, L, Sp) float32 and the neighbour lists (indptr, indices).
+
+    ``listener`` holds the M real reactions the columns of ``neighbours`` (N, M) refer to."""
     p = _as_float32(predictions, "predictions", 4)
     lst = _as_float32(listener, "listener", 3)
     sp = _as_float32(speaker, "speaker", 3)
@@ -109,11 +113,13 @@ def check_inputs(predictions, listener, speaker, neighbours, reactions: int | No
         raise InputError("predictions", f"expected {reactions} reactions per sample (axis 1), got {r}")
     if n == 0 or t < 2:
         raise InputError("predictions", f"need at least one sample and 2 frames, got shape {p.shape}")
-    for name, a in (("listener", lst), ("speaker", sp)):
-        if a.shape != (n, t, DIM):
-            raise InputError(name, f"expected shape {(n, t, DIM)} to match the predictions, got {a.shape}")
-    if np.shape(neighbours) != (n, n):
-        raise InputError("neighbours", f"expected shape {(n, n)} for {n} samples, got {np.shape(neighbours)}")
+    if sp.shape != (n, t, DIM):
+        raise InputError("speaker", f"expected shape {(n, t, DIM)} to match the predictions, got {sp.shape}")
+    if lst.shape[1:] != (t, DIM):
+        raise InputError("listener", f"expected shape (M, {t}, {DIM}) to match the predictions, got {lst.shape}")
+    if np.shape(neighbours) != (n, len(lst)):
+        raise InputError("neighbours", f"expected shape {(n, len(lst))} for {n} samples and {len(lst)} real "
+                                       f"reactions, got {np.shape(neighbours)}")
     return p, lst, sp, neighbour_lists(neighbours)
 
 
@@ -337,7 +343,8 @@ def score(predictions, listener, speaker, neighbours, *, reactions: int | None =
           screen: bool = True, threads: int | None = None) -> dict[str, float]:
     """Every metric of the suite: a dict keyed ``FRCorr FRDist FRDiv FRVar FRDvs FRSyn FRSyn_all``.
 
-    ``predictions`` (N, R, T, 25), ``listener`` and ``speaker`` (N, T, 25), ``neighbours`` (N, N) of 0/1.
+    ``predictions`` (N, R, T, 25), ``speaker`` (N, T, 25), ``listener`` (M, T, 25) (normally M = N: each
+    sample's own listener), ``neighbours`` (N, M) of 0/1.
     Raises :class:`InputError` for wrong shapes, a wrong R (``reactions=None`` accepts any), NaN/inf
     values, or a neighbour row without any 1 (naming the row). ``screen`` (the certified float32 screen
     of :func:`dyadbench.metrics.dtw.min_weighted_dtw`; same values either way) and ``threads`` only

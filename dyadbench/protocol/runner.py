@@ -26,7 +26,6 @@ import sys
 import tempfile
 import time
 from collections import OrderedDict
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
@@ -49,6 +48,7 @@ from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import (DataRecord, EvalResult, ModelRecord, ProtocolRecord, TimingRecord, environment,
                                utc_now)
 from dyadbench.scoring.report import ScoreItem
+from dyadbench.workers import process_map
 
 #: Metric suite of each motion layout (module dyadbench.scoring.<suite> provides score_arrays).
 SUITE_OF_LAYOUT = {"flame56": "dualtalk", "gaze7": "gaze"}
@@ -281,7 +281,9 @@ def _stream_all(model, model_name, options, source, ids, config, keep_audio, job
                           f"use jobs=1") from None
     # Forked workers share the parent's code and memory; a process that has loaded torch spawns fresh ones
     # (forking after torch's thread pools have started is unsafe).
+    # An error in a worker (a clip that cannot be read, a model that fails to build) is raised here as with
+    # jobs=1 (dyadbench.workers.process_map).
     method = "spawn" if "torch" in sys.modules or sys.platform != "linux" else "fork"
-    with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context(method), initializer=_init_worker,
-                             initargs=(model_name, options, source, config, keep_audio, threads)) as pool:
-        yield from pool.map(_worker_clip, ids, chunksize=max(1, min(16, len(ids) // (4 * jobs))))
+    yield from process_map(_worker_clip, ids, jobs=jobs, context=get_context(method), initializer=_init_worker,
+                           initargs=(model_name, options, source, config, keep_audio, threads),
+                           chunksize=max(1, min(16, len(ids) // (4 * jobs))))

@@ -5,11 +5,12 @@
 through the same per-item job (:func:`_score_job`) and the same report builder, so they give
 identical numbers for identical data.
 
-Per item: the prediction, the agent's ground truth and the partner's ground truth are validated,
-truncated to the shortest length (counted), and scored with
-:func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by ``derive_seed(seed, stem)``. Predictions
-with NaN/inf values or fewer than :data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are
-excluded and listed with the reason. Aggregation is the plain mean over clips.
+Per item: the prediction, the agent's ground truth and the partner's ground truth are validated
+with the bad-input policy of every suite (:mod:`dyadbench.scoring.policy`), truncated to the shortest
+length (counted), and scored with :func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by
+``derive_seed(seed, stem)``. Predictions with NaN/inf values or fewer than
+:data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are excluded and listed with the reason;
+predictions without ground truth are listed as extra. Aggregation is the plain mean over clips.
 """
 
 from __future__ import annotations
@@ -23,11 +24,12 @@ import numpy as np
 import scipy
 import sklearn
 
-from dyadbench.arrays import check_motion, nonfinite_count
+from dyadbench.arrays import check_motion
 from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import InputError
 from dyadbench.metrics import dualtalk as suite
 from dyadbench.motion import FLAME56
+from dyadbench.scoring import policy
 from dyadbench.scoring.parallel import THREADS_PER_JOB, map_items
 from dyadbench.scoring.predictions import PredictionFile, open_predictions
 from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
@@ -65,41 +67,37 @@ class _Outcome:
     frames: dict[str, int] = field(default_factory=dict)
     metrics: dict[str, float] | None = None
     excluded: str | None = None
-    error: tuple[str | None, str] | None = None
+    warnings: list[str | None] = field(default_factory=list)
 
 
-def _load_ground_truth(value: np.ndarray | Path, name: str) -> np.ndarray:
+def _load_ground_truth(value: np.ndarray | Path, name: str) -> tuple[np.ndarray, str]:
+    """(T, 56) ground truth and how messages name it (the file, or ``name`` for an in-memory array)."""
     if isinstance(value, Path):
-        return load_gt_npz(value)
-    return check_motion(value, name, FLAME56.dim)
+        return load_gt_npz(value), str(value)
+    return check_motion(value, name, FLAME56.dim), name
 
 
-def _load_job(job: _Job) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _load_prediction(job: _Job) -> tuple[np.ndarray, str]:
     if isinstance(job.pred, PredictionFile):
-        pred = job.pred.load(FLAME56.dim)
-    else:
-        pred = check_motion(job.pred, f"prediction {job.stem}", FLAME56.dim, finite=False)
-    gt = _load_ground_truth(job.gt, f"ground truth {job.stem}")
-    partner = _load_ground_truth(job.partner, f"partner ground truth of {job.stem}")
-    return pred, gt, partner
+        return job.pred.load(FLAME56.dim), job.pred.name
+    name = f"prediction {job.stem}"
+    return check_motion(job.pred, name, FLAME56.dim, finite=False), name
 
 
 def _score_job(job: _Job) -> _Outcome:
-    """Load, validate and score one agent. Runs in a worker: errors are returned, not raised."""
-    outcome = _Outcome(job.stem)
-    try:
-        pred, gt, partner = _load_job(job)
-    except InputError as exc:
-        outcome.error = (exc.source, exc.problem)
-        return outcome
-    outcome.frames = {"pred": pred.shape[0], "gt": gt.shape[0], "partner": partner.shape[0]}
-    bad = nonfinite_count(pred)
+    """Load, validate (:mod:`dyadbench.scoring.policy`) and score one agent. Runs in a worker: an error is
+    raised there and reaches the caller unchanged."""
+    pred, pred_name = _load_prediction(job)
+    gt, gt_name = _load_ground_truth(job.gt, f"ground truth of {job.stem}")
+    partner, partner_name = _load_ground_truth(job.partner, f"partner ground truth of {job.stem}")
+    outcome = _Outcome(job.stem, frames={"pred": pred.shape[0], "gt": gt.shape[0], "partner": partner.shape[0]})
+    outcome.excluded = policy.exclusion(pred, pred_name)
+    scored = [(gt, gt_name), (partner, partner_name)] + ([(pred, pred_name)] if outcome.excluded is None else [])
+    outcome.warnings = [policy.magnitude_warning(a, name, FLAME56) for a, name in scored]
     common = min(outcome.frames.values())
-    if bad:
-        outcome.excluded = f"{bad} NaN/inf values in the prediction"
-    elif common < suite.MIN_FRAMES:
-        outcome.excluded = f"only {common} common frames; the suite needs at least {suite.MIN_FRAMES}"
-    else:
+    if outcome.excluded is None and common < suite.MIN_FRAMES:
+        outcome.excluded = policy.too_short(pred_name, common, suite.MIN_FRAMES, "common frames")
+    if outcome.excluded is None:
         try:
             outcome.metrics = suite.clip_metrics(pred, gt, partner, seed=job.seed)
         except ValueError as exc:  # e.g. a Fréchet distance with a large imaginary part (reference: crash)
@@ -148,11 +146,11 @@ def _undefined_notes(undefined: dict[str, list[str]], n_scored: int) -> list[str
     return notes
 
 
-def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], inputs: dict) -> ScoreReport:
-    rows, excluded, truncated = [], [], []
+def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], inputs: dict,
+         extra: list[str]) -> ScoreReport:
+    rows, excluded, truncated, warnings = [], [], [], []
     for outcome in map_items(_score_job, jobs_list, jobs=jobs, desc="dualtalk"):
-        if outcome.error is not None:
-            raise InputError(*outcome.error)
+        warnings += outcome.warnings
         if len(set(outcome.frames.values())) > 1:
             truncated.append({"clip": outcome.stem, **outcome.frames, "used": min(outcome.frames.values())})
         if outcome.excluded is not None:
@@ -160,11 +158,11 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
         else:
             rows.append({"clip": outcome.stem, **outcome.metrics})
     if not rows:
-        reasons = "; ".join(f"{e['clip']}: {e['reason']}" for e in excluded[:5])
-        raise InputError(inputs.get("pred"), f"no prediction could be scored ({reasons})")
+        raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     metrics, undefined = _aggregate(rows)
     present = {job.stem for job in jobs_list}
-    notes = _undefined_notes(undefined, len(rows))
+    notes = (policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
+             + _undefined_notes(undefined, len(rows)))
     if truncated:
         notes.append(f"{len(truncated)} clip(s) truncated to the shortest of prediction, ground truth and "
                      f"partner lengths (listed under coverage.truncated)")
@@ -175,7 +173,7 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
         per_item=rows,
         excluded=excluded,
         coverage={"expected": len(expected), "scored": len(rows),
-                  "missing": [s for s in expected if s not in present], "extra": [],
+                  "missing": [s for s in expected if s not in present], "extra": extra,
                   "truncated": truncated, "undefined": undefined},
         config=_config(seed, jobs, inputs),
         notes=notes,
@@ -220,7 +218,8 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> Sco
             raise InputError(item.stem, "the DualTalk suite needs the partner's ground truth (partner=None)")
     jobs_list = [_Job(item.stem, derive_seed(seed, item.stem), item.pred, item.gt, item.partner)
                  for item in items]
-    return _run(jobs_list, jobs=jobs, seed=seed, expected=stems, inputs={"pred": "in-memory", "gt": "in-memory"})
+    return _run(jobs_list, jobs=jobs, seed=seed, expected=stems, inputs={"pred": "in-memory", "gt": "in-memory"},
+                extra=[])
 
 
 def partner_stem(stem: str, source: str | None = None) -> str:
@@ -247,23 +246,27 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
     """Score a prediction folder (``<clip>_speakerK.npy``) or ``.npz`` against a DualTalk split folder.
 
     ``gt`` is the split folder itself, or the DualTalk root when ``split`` names its sub-folder.
-    Every prediction needs its own ground truth and its partner's (``_speaker1`` <-> ``_speaker2``);
-    a missing one raises :class:`InputError` naming the file. Coverage is reported against every
-    agent with ground truth in the folder.
+    A prediction without its own ground truth is extra (listed, not scored); a scored prediction also
+    needs its partner's ground truth (``_speaker1`` <-> ``_speaker2``), and a missing one raises
+    :class:`InputError` naming the file. Coverage is reported against every agent with ground truth in
+    the folder.
     """
     gt_dir = Path(gt) / split if split else Path(gt)
     expected = ground_truth_stems(gt_dir)
     predictions = open_predictions(pred)
+    known = set(expected)
+    extra = [stem for stem in predictions if stem not in known]
     jobs_list, absent = [], []
     for stem, prediction in predictions.items():
-        own = gt_dir / f"{stem}.npz"
+        if stem not in known:
+            continue
         partner = gt_dir / f"{partner_stem(stem, prediction.name)}.npz"
-        absent += [(path, role, prediction.name) for path, role in
-                   ((own, "ground truth"), (partner, "partner ground truth")) if not path.is_file()]
-        jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, own, partner))
+        if partner.name[: -len(".npz")] not in known:
+            absent.append((partner, prediction.name))
+        jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, gt_dir / f"{stem}.npz", partner))
     if absent:
-        path, role, name = absent[0]
+        path, name = absent[0]
         more = f" (and {len(absent) - 1} more ground-truth files are missing)" if len(absent) > 1 else ""
-        raise InputError(path, f"{role} of prediction {name} not found{more}")
+        raise InputError(path, f"partner ground truth of prediction {name} not found{more}")
     return _run(jobs_list, jobs=jobs, seed=seed, expected=expected,
-                inputs={"pred": str(pred), "gt": str(gt_dir)})
+                inputs={"pred": str(pred), "gt": str(gt_dir)}, extra=extra)

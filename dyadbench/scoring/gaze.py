@@ -22,11 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from dyadbench.datasets.gaze import open_split
+from dyadbench.arrays import check_motion
+from dyadbench.datasets.gaze import SessionFile, open_split
 from dyadbench.errors import InputError
 from dyadbench.metrics import beats, gaze
 from dyadbench.metrics.fixations import fixation_counts
 from dyadbench.motion import FPS, GAZE7
+from dyadbench.scoring import policy
 from dyadbench.scoring.parallel import map_items
 from dyadbench.scoring.predictions import open_predictions
 from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
@@ -79,23 +81,28 @@ class _Task:
     config: GazeSuiteConfig
 
 
-def _prepare(item: ScoreItem, skip: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, int]:
-    """Checked pred/gt cut to a common length with the seed frames removed; audio cut alike."""
+def _check(item: ScoreItem, skip: int) -> tuple[str | None, list[str | None]]:
+    """The bad-input policy (:mod:`dyadbench.scoring.policy`) for one item: errors are raised; returns the
+    reason it is excluded (None: scored) and the magnitude warnings."""
     if item.fps != FPS:
         raise InputError(item.stem, f"the gaze suite scores {FPS:g}-fps motion, got {item.fps:g} fps")
-    pred = np.asarray(item.pred, dtype=np.float64)
-    try:
-        gt = gaze.check_motion(item.gt, f"{item.stem} (ground truth)")
-    except InputError as exc:
-        raise InputError(item.stem, f"ground truth: {exc.problem}") from None
-    if pred.ndim != 2 or pred.shape[1] != GAZE7.dim:
-        raise InputError(item.stem, f"prediction must be (T, 7) degrees, got shape {pred.shape}")
-    if not np.isfinite(pred).all():
-        raise InputError(item.stem, "prediction contains NaN or inf")
+    gt = check_motion(item.gt, item.gt_name, GAZE7.dim)
+    pred = check_motion(item.pred, item.pred_name, GAZE7.dim, finite=False)
+    warnings = [policy.magnitude_warning(gt, item.gt_name, GAZE7)]
+    reason = policy.exclusion(pred, item.pred_name)
     n = min(len(pred), len(gt))
-    if n - skip < 3:
-        raise InputError(item.stem, f"{n} frames in common; at least {skip + 3} are needed "
-                                    f"({skip} seed frames are excluded)")
+    if reason is None and n - skip < 3:
+        reason = policy.too_short(item.pred_name, n, skip + 3, f"common frames ({skip} seed frames are excluded)")
+    if reason is None:
+        warnings.append(policy.magnitude_warning(pred, item.pred_name, GAZE7))
+    return reason, warnings
+
+
+def _prepare(item: ScoreItem, skip: int) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, int]:
+    """Pred/gt (checked by :func:`_check`) cut to a common length with the seed frames removed; audio cut
+    alike."""
+    pred, gt = np.asarray(item.pred, dtype=np.float64), np.asarray(item.gt, dtype=np.float64)
+    n = min(len(pred), len(gt))
     audio = None
     if item.audio is not None:
         hop = int(round(item.sample_rate / item.fps))
@@ -105,10 +112,7 @@ def _prepare(item: ScoreItem, skip: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 def _score_item(task: _Task) -> dict:
     item, cfg = task.item, task.config
-    try:
-        pred, gt, audio, n_common = _prepare(item, cfg.skip_frames)
-    except InputError as exc:
-        return {"clip": item.stem, "excluded": exc.problem}
+    pred, gt, audio, n_common = _prepare(item, cfg.skip_frames)
     row: dict = {"clip": item.stem, "frames": len(pred),
                  "truncated": int(max(len(item.pred), len(item.gt)) - n_common)}
     for group in gaze.GROUPS:
@@ -218,14 +222,33 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config
     (its ``digest`` is recorded); None leaves ``style_ce`` out. ``seed`` fixes the shuffled-speech
     derangement of the BAS reference.
     """
+    return _score(items, jobs=jobs, seed=seed, config=config, style_encoder=style_encoder,
+                  coverage={"expected": len(items), "missing": [], "extra": []}, inputs={"pred": None, "gt": None},
+                  warnings=[])
+
+
+def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteConfig | None,
+           style_encoder: gaze.StyleEncoder | None, coverage: dict, inputs: dict,
+           warnings: list[str | None]) -> ScoreReport:
+    """Score ``items`` (see :func:`score_arrays`); ``coverage`` gives expected, missing and extra,
+    ``warnings`` the ground-truth files' magnitude warnings, ``inputs`` names pred and gt."""
     cfg = config or GazeSuiteConfig()
     stems = [it.stem for it in items]
     if len(set(stems)) != len(stems):
         raise InputError("predictions", "two items share a stem")
-    outputs = list(map_items(_score_item, [_Task(it, cfg) for it in items], jobs=jobs, desc="gaze suite"))
-    excluded = [{"clip": o["clip"], "reason": o["excluded"]} for o in outputs if "excluded" in o]
-    results = [o for o in outputs if "excluded" not in o]
-    notes: list[str] = []
+    tasks, excluded = [], []
+    for it in items:
+        reason, found = _check(it, cfg.skip_frames)
+        warnings = warnings + found
+        if reason is None:
+            tasks.append(_Task(it, cfg))
+        else:
+            excluded.append({"clip": it.stem, "reason": reason})
+    if not tasks:
+        raise policy.nothing_scored(inputs["pred"], excluded, coverage["extra"], stems + coverage["missing"],
+                                    warnings)
+    results = list(map_items(_score_item, tasks, jobs=jobs, desc="gaze suite"))
+    notes = policy.warning_notes(warnings) + policy.extra_notes(coverage["extra"], stems + coverage["missing"])
     _add_bas(results, cfg, seed, notes)
     if style_encoder is not None:
         _add_style(results, {it.stem: it for it in items}, cfg, style_encoder)
@@ -257,7 +280,8 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config
                    "higher_is_better": {k: higher_is_better(k) for k in metrics}}
     columns = [c for c in COLUMNS if c.key in metrics]
     return ScoreReport(suite=SUITE, metrics=metrics, scaled=scaled, per_item=per_item, excluded=excluded,
-                       coverage={"expected": len(items), "scored": len(per_item), "missing": [], "extra": []},
+                       coverage={"expected": coverage["expected"], "scored": len(per_item),
+                                 "missing": coverage["missing"], "extra": coverage["extra"]},
                        config=config_dict, notes=notes, columns=columns)
 
 
@@ -272,9 +296,11 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
     """
     source = open_split(Path(gt), split)
     files = open_predictions(pred)
-    items, missing, used = [], [], set()
+    items, missing, used, sessions = [], [], set(), {}
     for clip in source:
         stem = clip.agent_ids()[0]
+        session = clip.meta["session"]
+        sessions[session] = source.session_path(session)
         name = stem if stem in files else clip.clip_id if clip.clip_id in files else None
         if name is None:
             missing.append(stem)
@@ -282,9 +308,18 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
         used.add(name)
         p = clip.participants[0]
         items.append(ScoreItem(stem=stem, pred=files[name].load(GAZE7.dim), gt=p.motion, audio=p.audio,
-                               identity=p.identity, fps=clip.fps, sample_rate=clip.sample_rate))
-    report = score_arrays(items, jobs=jobs, seed=seed, config=config, style_encoder=style_encoder)
-    report.coverage = {"expected": len(source), "scored": report.n_scored, "missing": missing,
-                       "extra": sorted(set(files) - used)}
+                               identity=p.identity, fps=clip.fps, sample_rate=clip.sample_rate,
+                               pred_source=files[name].name, gt_source=f"{sessions[session]}[motion]"))
+    # the sessions as stored: frames beyond the 40° rule are dropped before scoring, but named here
+    warnings = [policy.magnitude_warning(_tracked(source.session(s)), f"{path}[motion]", GAZE7)
+                for s, path in sessions.items()]
+    report = _score(items, jobs=jobs, seed=seed, config=config, style_encoder=style_encoder,
+                    coverage={"expected": len(source), "missing": missing, "extra": sorted(set(files) - used)},
+                    inputs={"pred": str(pred), "gt": str(gt)}, warnings=warnings)
     report.config["ground_truth"] = source.describe()
     return report
+
+
+def _tracked(session: SessionFile) -> np.ndarray:
+    """A session's motion in the frames not marked as tracker loss."""
+    return session.motion if session.valid is None else session.motion[session.valid]

@@ -4,7 +4,9 @@ On disk: a folder of ``<clip>_listener.npy`` files or one ``.npz`` with those ke
 flame56 order [exp | jaw | head rotation], where ``<clip>`` is ``<host>_<split>_<n:05d>`` (window n of
 the host's split, see :mod:`dyadbench.datasets.l2l`). The ground truth is an L2L root (or host folder);
 the split defaults to ``test``. The suite is split-level (pooled statistics), so the predictions present
-are scored together and coverage lists the missing ones; predictions with NaN/inf are excluded and listed.
+are scored together and coverage lists the missing ones. Bad input follows the policy of every suite
+(:mod:`dyadbench.scoring.policy`): predictions with NaN/inf or fewer than two common frames are excluded
+and listed, the pooled statistics are computed over the scored ones.
 """
 
 from __future__ import annotations
@@ -14,15 +16,18 @@ from pathlib import Path
 import numpy as np
 import sklearn
 
-from dyadbench.arrays import nonfinite_count
+from dyadbench.arrays import check_motion
 from dyadbench.datasets import l2l as layout
 from dyadbench.errors import InputError
 from dyadbench.metrics import l2l as suite
+from dyadbench.metrics.dualtalk import truncate_to_shortest
 from dyadbench.motion import FLAME56
+from dyadbench.scoring import policy
 from dyadbench.scoring.predictions import open_predictions
 from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
 
 SUITE = "l2l"
+MIN_FRAMES = 2  # the suite's per-sequence statistics need two frames
 HEADERS = {"l2": "L2", "fd": "FD", "pfd": "P-FD", "var": "Var", "var_gt": "Var-GT", "si": "SI", "si_gt": "SI-GT",
            "rpcc": "rPCC"}
 
@@ -31,11 +36,12 @@ def columns(params: suite.L2LParams) -> list[Column]:
     return [Column(f"{m}_{c}", f"{HEADERS[m]} {c}") for m in suite.METRIC_NAMES for c in params.components]
 
 
-def _report(stems, preds, gts, speakers, *, expected, excluded, extra, seed, inputs, params) -> ScoreReport:
+def _report(stems, preds, gts, speakers, *, expected, excluded, extra, warnings, seed, inputs,
+            params) -> ScoreReport:
+    stems, preds, gts, speakers, per_sequence = _sequence_metrics(stems, preds, gts, speakers, excluded, params)
     if not stems:
-        reasons = "; ".join(f"{e['clip']}: {e['reason']}" for e in excluded[:5])
-        raise InputError(inputs.get("pred"), f"no prediction could be scored ({reasons or 'none given'})")
-    metrics, per_sequence = suite.split_metrics(preds, gts, speakers, params)
+        raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
+    metrics, per_sequence = suite.split_metrics(preds, gts, speakers, params, per_sequence)
     rows = [{"clip": stem, **values} for stem, values in zip(stems, per_sequence)]
     present = set(stems) | {e["clip"] for e in excluded}
     return ScoreReport(
@@ -48,20 +54,40 @@ def _report(stems, preds, gts, speakers, *, expected, excluded, extra, seed, inp
                                      for c in params.components},
                 "truncation": "each sequence cut to the shortest of prediction, ground truth and speaker",
                 "versions": {"numpy": np.__version__, "scikit-learn": sklearn.__version__}},
-        notes=["var and si are judged against var_gt and si_gt (the ground truth's own values)"],
+        notes=policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
+        + ["var and si are judged against var_gt and si_gt (the ground truth's own values)"],
         columns=columns(params))
 
 
-def _split_valid(stems, preds, gts, speakers):
-    keep, excluded = [], []
-    for i, (stem, pred) in enumerate(zip(stems, preds)):
-        bad = nonfinite_count(np.asarray(pred))
-        if bad:
-            excluded.append({"clip": stem, "reason": f"{bad} NaN/inf values in the prediction"})
-        else:
+def _sequence_metrics(stems, preds, gts, speakers, excluded, params):
+    """Each sequence's metrics; a sequence whose metrics are undefined (e.g. a Fréchet distance with a large
+    imaginary part) is left out and added to ``excluded`` with the reason, as in the DualTalk suite."""
+    keep, rows = [], []
+    for i, triple in enumerate(zip(preds, gts, speakers)):
+        try:
+            rows.append(suite.sequence_metrics(*truncate_to_shortest(*triple), params))
             keep.append(i)
+        except ValueError as exc:
+            excluded.append({"clip": stems[i], "reason": f"could not be scored: {exc}"})
+    return *([xs[i] for i in keep] for xs in (stems, preds, gts, speakers)), rows
+
+
+def _split_valid(stems, preds, names, gts, speakers):
+    """The scorable sequences (:mod:`dyadbench.scoring.policy`: NaN/inf or fewer than 2 common frames are
+    excluded), the excluded ones with their reasons, and the predictions' magnitude warnings."""
+    keep, excluded, warnings = [], [], []
+    for i, (stem, pred, name) in enumerate(zip(stems, preds, names)):
+        reason = policy.exclusion(pred, name)
+        common = min(len(pred), len(gts[i]), len(speakers[i]))
+        if reason is None and common < MIN_FRAMES:
+            reason = policy.too_short(name, common, MIN_FRAMES, "common frames")
+        if reason is None:
+            keep.append(i)
+            warnings.append(policy.magnitude_warning(pred, name, FLAME56))
+        else:
+            excluded.append({"clip": stem, "reason": reason})
     stems, preds, gts, speakers = ([xs[i] for i in keep] for xs in (stems, preds, gts, speakers))
-    return stems, preds, gts, speakers, excluded
+    return stems, preds, gts, speakers, excluded, warnings
 
 
 def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0,
@@ -72,33 +98,38 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0,
     """
     if not items:
         raise InputError(None, "no items to score")
+    preds, gts, speakers, names, warnings = [], [], [], [], []
     for item in items:
         if item.partner is None:
             raise InputError(item.stem, "the L2L suite needs the speaker's motion (partner=None)")
-        for name, a in (("prediction", item.pred), ("ground truth", item.gt), ("speaker", item.partner)):
-            if np.ndim(a) != 2 or np.shape(a)[1] != FLAME56.dim:
-                raise InputError(f"{item.stem} {name}", f"expected (T, {FLAME56.dim}), got {np.shape(a)}")
+        names.append(item.pred_name)
+        preds.append(check_motion(item.pred, item.pred_name, FLAME56.dim, finite=False))
+        for name, array, out in ((item.gt_name, item.gt, gts), (f"speaker of {item.stem}", item.partner, speakers)):
+            out.append(check_motion(array, name, FLAME56.dim))
+            warnings.append(policy.magnitude_warning(out[-1], name, FLAME56))
     stems = [i.stem for i in items]
-    kept = _split_valid(stems, [i.pred for i in items], [i.gt for i in items], [i.partner for i in items])
-    return _report(*kept[:4], expected=stems, excluded=kept[4], extra=[], seed=seed,
-                   inputs={"pred": "in-memory", "gt": "in-memory"}, params=params)
+    *kept, excluded, pred_warnings = _split_valid(stems, preds, names, gts, speakers)
+    return _report(*kept, expected=stems, excluded=excluded, extra=[], warnings=warnings + pred_warnings,
+                   seed=seed, inputs={"pred": "in-memory", "gt": "in-memory"}, params=params)
 
 
 def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,
                 seed: int = 0) -> ScoreReport:
     """Score ``<clip>_listener`` predictions against an L2L root (split ``test`` unless given)."""
     split = split or "test"
-    expected, listener, speaker = layout.ground_truth(gt, split)
+    hosts = layout.host_splits(gt, split)
+    expected, listener, speaker = layout.stack_ground_truth(hosts, split)
+    warnings = [policy.magnitude_warning(array[..., :layout.MOTION_DIM], path, FLAME56)
+                for hs in hosts for path, array in hs.motion_files()]
     index = {stem: i for i, stem in enumerate(expected)}
     predictions = open_predictions(pred)
     extra = sorted(s for s in predictions if s not in index)
     stems = [s for s in predictions if s in index]
-    if not stems:
-        raise InputError(pred, f"no prediction named like the {split} windows (<host>_{split}_<n>_listener), "
-                               f"e.g. {expected[0]}")
     preds = [predictions[s].load(FLAME56.dim) for s in stems]
+    names = [predictions[s].name for s in stems]
     gts = [listener[index[s]] for s in stems]
     spk = [speaker[index[s]] for s in stems]
-    kept = _split_valid(stems, preds, gts, spk)
-    return _report(*kept[:4], expected=expected, excluded=kept[4], extra=extra, seed=seed,
-                   inputs={"pred": str(pred), "gt": str(gt), "split": split}, params=suite.L2LParams())
+    *kept, excluded, pred_warnings = _split_valid(stems, preds, names, gts, spk)
+    return _report(*kept, expected=expected, excluded=excluded, extra=extra, warnings=warnings + pred_warnings,
+                   seed=seed, inputs={"pred": str(pred), "gt": str(gt), "split": split},
+                   params=suite.L2LParams())

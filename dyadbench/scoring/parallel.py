@@ -4,17 +4,19 @@ Per-clip metrics are small linear-algebra problems (50x50 matrices, k-means on ~
 multi-threaded BLAS/OpenMP gains nothing on them and, with several processes on the same cores,
 oversubscribes the machine badly. So every worker (and the calling process when ``jobs == 1``)
 runs with ``threadpoolctl`` limits of :data:`THREADS_PER_JOB` thread. Results come back in input
-order; the numbers do not depend on ``jobs``.
+order; the numbers do not depend on ``jobs``. An error raised for an item in a worker is raised here
+as it would be with ``jobs == 1`` (:func:`dyadbench.workers.process_map`).
 """
 
 from __future__ import annotations
 
 import multiprocessing
-from concurrent.futures import ProcessPoolExecutor
 from typing import Callable, Iterator, Sequence, TypeVar
 
 from threadpoolctl import threadpool_limits
 from tqdm import tqdm
+
+from dyadbench.workers import process_map
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -45,14 +47,9 @@ def map_items(fn: Callable[[T], R], items: Sequence[T], *, jobs: int = 1, desc: 
                     bar.update()
             return
         chunk = chunksize or max(1, min(16, len(items) // (4 * jobs)))
-        pool = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("fork"),
-                                   initializer=_limit_worker_threads)
-        try:
-            for result in pool.map(fn, items, chunksize=chunk):
-                yield result
-                bar.update()
-        finally:
-            # On an error (or an abandoned iteration) pending chunks are cancelled, not computed.
-            pool.shutdown(wait=True, cancel_futures=True)
+        for result in process_map(fn, items, jobs=jobs, context=multiprocessing.get_context("fork"),
+                                  initializer=_limit_worker_threads, chunksize=chunk):
+            yield result
+            bar.update()
     finally:
         bar.close()

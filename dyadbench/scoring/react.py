@@ -6,28 +6,33 @@ Predictions on disk (``score_paths``), for the N = 2M samples of a split in REAC
 - an ``.npz`` (or a folder of ``.npy`` files) with one (R, T, 25) array per sample, named by the
   sample's *speaker* relative path from the split csv: key ``NoXI/<session>/Expert_video/3`` (a
   folder: file ``<folder>/NoXI/<session>/Expert_video/3.npy``). Every person is the speaker of exactly
-  one sample, so the names are unique; a name without a sample (or a sample without a prediction) is
-  an error that names it.
+  one sample, so the names are unique.
 
 Like the official evaluation, every clip is cut to its first :data:`~dyadbench.metrics.react.FRAMES`
-(750) frames; predictions need at least that many, and exactly R = 10 reactions. Scoring needs every
-sample (FRDvs and the neighbour matrix couple them), so nothing is excluded: a NaN is an error.
+(750) frames and every array is held as float32; predictions need exactly R = 10 reactions. Bad input
+follows the policy of every suite (:mod:`dyadbench.scoring.policy`): a sample whose prediction holds
+NaN/inf (after the float32 rounding) or has fewer than 750 frames is excluded and listed, a sample
+without a prediction is listed as missing, a name that is no sample's speaker path as extra. The
+metrics are computed over the scored samples, each against the full pool of real listener reactions
+(the neighbour matrix's rows of the scored samples, all its columns); FRDvs pairs the scored samples.
 """
 
 from __future__ import annotations
 
-import zipfile
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numba
 import numpy as np
 import tslearn
 
-from dyadbench.arrays import load_npy, load_npz
-from dyadbench.datasets.react import SCORED_SPLITS, ReactSplit, neighbour_path
+from dyadbench.arrays import require_float, shape_problem
+from dyadbench.datasets.react import REACT25, SCORED_SPLITS, ReactSplit, neighbour_path
 from dyadbench.errors import InputError
 from dyadbench.metrics import react as suite
 from dyadbench.metrics.tlcc import MAX_LAG
+from dyadbench.scoring import policy
+from dyadbench.scoring.predictions import open_predictions
 from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
 
 SUITE = "react"
@@ -58,22 +63,65 @@ def _config(inputs: dict, seed: int, jobs: int, reactions: int, frames: int, nei
     }
 
 
-def _report(stems: list[str], predictions, listener, speaker, neighbours, *, jobs: int, seed: int,
-            inputs: dict, notes: list[str], reactions: int | None = suite.REACTIONS) -> ScoreReport:
+def _report(stems: list[str], found: SamplePredictions, listener: np.ndarray, speaker: np.ndarray,
+            neighbours: np.ndarray, *, jobs: int, seed: int, inputs: dict, notes: list[str],
+            gt_names: list[tuple[str, str]], reactions: int | None = suite.REACTIONS) -> ScoreReport:
+    """Score the samples of ``found`` (the others are excluded, missing or extra) against every sample's
+    ground truth; ``gt_names`` names each sample's (listener, speaker) ground truth in warnings."""
+    warnings = found.warnings + [policy.magnitude_warning(array[k], names[i], REACT25)
+                                 for k, names in enumerate(gt_names) for i, array in enumerate((listener, speaker))]
+    keep = [k for k, stem in enumerate(stems) if stem in found.arrays]
+    if not keep:
+        raise policy.nothing_scored(inputs.get("pred"), found.excluded, found.extra, stems, warnings)
+    predictions = np.stack([found.arrays[stems[k]] for k in keep])
     previous = numba.get_num_threads()
     numba.set_num_threads(max(1, min(jobs, numba.config.NUMBA_NUM_THREADS)))
     try:
-        metrics, per_sample = suite.evaluate(predictions, listener, speaker, neighbours, reactions=reactions,
-                                             progress=True)
+        metrics, per_sample = suite.evaluate(predictions, listener, speaker[keep], np.asarray(neighbours)[keep],
+                                             reactions=reactions, progress=True)
     finally:
         numba.set_num_threads(previous)
-    rows = [{"clip": stem, **{k: float(per_sample[k][i]) for k in PER_SAMPLE_KEYS}} for i, stem in enumerate(stems)]
-    notes = list(notes) + [f"{name} not computed: {why}" for name, why in suite.NOT_COMPUTED.items()]
-    return ScoreReport(suite=SUITE, metrics=metrics, scaled=dict(metrics), per_item=rows,
-                       coverage={"expected": len(stems), "scored": len(stems), "missing": [], "extra": []},
-                       config=_config(inputs, seed, jobs, np.shape(predictions)[1], np.shape(predictions)[2],
-                                      neighbours),
+    rows = [{"clip": stems[k], **{key: float(per_sample[key][i]) for key in PER_SAMPLE_KEYS}}
+            for i, k in enumerate(keep)]
+    notes = (policy.warning_notes(warnings) + policy.extra_notes(found.extra, stems) + list(notes)
+             + [f"{name} not computed: {why}" for name, why in suite.NOT_COMPUTED.items()])
+    return ScoreReport(suite=SUITE, metrics=metrics, scaled=dict(metrics), per_item=rows, excluded=found.excluded,
+                       coverage={"expected": len(stems), "scored": len(keep), "missing": found.missing,
+                                 "extra": found.extra},
+                       config=_config(inputs, seed, jobs, predictions.shape[1], predictions.shape[2], neighbours),
                        notes=notes, columns=columns())
+
+
+@dataclass
+class SamplePredictions:
+    """The predictions found for a split's samples: the scorable ones (``arrays``: speaker path ->
+    (R, T, 25) float32) and, following :mod:`dyadbench.scoring.policy`, the excluded ones (with their
+    reasons), the missing and the extra names, and the magnitude warnings."""
+
+    arrays: dict[str, np.ndarray] = field(default_factory=dict)
+    excluded: list[dict] = field(default_factory=list)
+    missing: list[str] = field(default_factory=list)
+    extra: list[str] = field(default_factory=list)
+    warnings: list[str | None] = field(default_factory=list)
+
+    def add(self, stem: str, array: np.ndarray, name: str, reactions: int | None, frames: int | None) -> None:
+        """Check one sample's prediction (shape and dtype: errors; then the exclusion rules) and keep it
+        as float32, cut to ``frames`` (None: all). ``reactions`` None accepts any R."""
+        array = np.asarray(array)
+        expected = (reactions or "R", "T", suite.DIM)
+        if array.ndim != 3 or array.shape[-1] != suite.DIM or array.shape[0] != (reactions or array.shape[0]):
+            raise InputError(name, shape_problem(array.shape, "(" + ", ".join(map(str, expected)) + ")",
+                                                 transposed=array.ndim == 3 and array.shape[1] == suite.DIM))
+        require_float(array, name)
+        array = array.astype(np.float32)  # the official loader's precision (values beyond its range are inf)
+        reason = policy.exclusion(array, name)
+        if reason is None and frames is not None and array.shape[1] < frames:
+            reason = policy.too_short(name, array.shape[1], frames)
+        if reason is not None:
+            self.excluded.append({"clip": stem, "reason": reason})
+            return
+        self.warnings.append(policy.magnitude_warning(array, name, REACT25))
+        self.arrays[stem] = array[:, :frames] if frames is not None else array
 
 
 def score_arrays(items: list[ScoreItem], *, neighbours: np.ndarray | None = None, jobs: int = 1,
@@ -93,80 +141,45 @@ def score_arrays(items: list[ScoreItem], *, neighbours: np.ndarray | None = None
     if neighbours is None:
         neighbours = np.eye(len(items), dtype=np.int64)
         notes.append("no neighbour matrix given: each sample's own listener is its only appropriate reaction")
-    preds = [np.asarray(item.pred) for item in items]
-    shapes = {p.shape for p in preds}
+    shapes = {np.shape(item.pred) for item in items}
     if len(shapes) != 1:
         raise InputError(items[0].stem, f"predictions differ in shape: {sorted(shapes)}")
-    return _report([i.stem for i in items], np.stack(preds), np.stack([i.gt for i in items]),
-                   np.stack([i.partner for i in items]), neighbours, jobs=jobs, seed=seed,
-                   inputs={"pred": "in-memory", "gt": "in-memory"}, notes=notes, reactions=None)
+    found = SamplePredictions()
+    for item in items:
+        found.add(item.stem, item.pred, item.pred_name, None, None)
+    gt_names = [(item.gt_name, f"speaker of {item.stem}") for item in items]
+    listener, speaker = ([np.asarray(getattr(item, role)) for item in items] for role in ("gt", "partner"))
+    for arrays, i in ((listener, 0), (speaker, 1)):
+        for array, names in zip(arrays, gt_names):
+            require_float(array, names[i])
+            policy.check_ground_truth(array, names[i])
+    return _report([i.stem for i in items], found, np.stack(listener), np.stack(speaker), neighbours, jobs=jobs,
+                   seed=seed, inputs={"pred": "in-memory", "gt": "in-memory"}, notes=notes, gt_names=gt_names,
+                   reactions=None)
 
 
-def _npz_keys(path: Path) -> list[str]:
-    try:
-        with zipfile.ZipFile(path) as archive:
-            return [n[: -len(".npy")] for n in archive.namelist() if n.endswith(".npy")]
-    except (zipfile.BadZipFile, OSError) as exc:
-        raise InputError(path, f"unreadable .npz archive ({exc})") from None
-
-
-def _cut(array: np.ndarray, name: str, shape_tail: tuple[int, ...], frames: int) -> np.ndarray:
-    """Check (..., T, 25) with T >= frames and the expected leading dims; keep the first ``frames``."""
-    if array.ndim != len(shape_tail) + 2 or array.shape[-1] != suite.DIM or array.shape[:-2] != shape_tail:
-        want = "(" + ", ".join(str(s) for s in shape_tail + ("T",)) + f", {suite.DIM})"
-        raise InputError(name, f"expected shape {want}, got {array.shape}")
-    if array.shape[-2] < frames:
-        raise InputError(name, f"has {array.shape[-2]} frames; the evaluation uses the first {frames}")
-    if array.dtype.kind not in "fiu":
-        raise InputError(name, f"expected real numbers, got dtype {array.dtype}")
-    return array[..., :frames, :]
-
-
-class _KeyedPredictions:
-    """One (R, T, 25) array per speaker path: the members of an ``.npz`` or the ``.npy`` files of a folder."""
-
-    def __init__(self, pred: Path, keys: list[str] | None = None):
-        self.pred = pred
-        self.archive = keys is not None
-        if self.archive:
-            self.keys = set(keys)
+def load_predictions(pred: Path, speakers: list[str], reactions: int, frames: int) -> SamplePredictions:
+    """The predictions of the samples (named by their speaker paths) from any accepted form, checked
+    and cut to ``frames``; see :class:`SamplePredictions`."""
+    found = SamplePredictions()
+    files = open_predictions(pred, recursive=True)
+    stacked = files.pop(STACKED_KEY, None) if pred.is_file() else None
+    if stacked is not None:
+        array = stacked.read()
+        if array.ndim != 4 or array.shape[:2] != (len(speakers), reactions) or array.shape[-1] != suite.DIM:
+            raise InputError(stacked.name, shape_problem(array.shape, f"({len(speakers)}, {reactions}, T, "
+                                                                      f"{suite.DIM})"))
+        for k, speaker in enumerate(speakers):
+            found.add(speaker, array[k], f"{stacked.name}[{k}] (sample {speaker})", reactions, frames)
+        found.extra = sorted(files)
+        return found
+    for speaker in speakers:
+        if speaker in files:
+            found.add(speaker, files[speaker].read(), files[speaker].name, reactions, frames)
         else:
-            self.keys = {f.relative_to(pred).with_suffix("").as_posix() for f in pred.rglob("*.npy")}
-
-    def name(self, key: str) -> str:
-        return f"{self.pred}[{key}]" if self.archive else str(self.pred / f"{key}.npy")
-
-    def load(self, key: str) -> np.ndarray:
-        return load_npz(self.pred, [key])[key] if self.archive else load_npy(self.pred / f"{key}.npy")
-
-
-def load_predictions(pred: Path, speakers: list[str], reactions: int, frames: int) -> np.ndarray:
-    """(N, R, frames, 25) float32 in sample order from any of the accepted prediction forms."""
-    n = len(speakers)
-    if pred.is_file() and pred.suffix == ".npz":
-        keys = _npz_keys(pred)
-        if STACKED_KEY in keys:
-            array = load_npz(pred, [STACKED_KEY])[STACKED_KEY]
-            return _cut(array, f"{pred}[{STACKED_KEY}]", (n, reactions), frames).astype(np.float32)
-        found = _KeyedPredictions(pred, keys)
-    elif pred.is_dir():
-        found = _KeyedPredictions(pred)
-    else:
-        raise InputError(pred, "predictions must be an .npz or a folder of .npy files")
-    missing = [s for s in speakers if s not in found.keys]
-    extra = sorted(found.keys - set(speakers))
-    if missing or extra:
-        problems = []
-        if missing:
-            problems.append(f"{len(missing)} sample(s) without a prediction (e.g. {missing[0]})")
-        if extra:
-            problems.append(f"{len(extra)} name(s) that are no sample's speaker path (e.g. {extra[0]})")
-        raise InputError(pred, "; ".join(problems) + f"; expected the key {STACKED_KEY!r} with (N, R, T, 25) "
-                               "or one (R, T, 25) array per speaker relative path")
-    out = np.empty((n, reactions, frames, suite.DIM), dtype=np.float32)
-    for k, speaker in enumerate(speakers):
-        out[k] = _cut(found.load(speaker), found.name(speaker), (reactions,), frames)
-    return out
+            found.missing.append(speaker)
+    found.extra = sorted(set(files) - set(speakers))
+    return found
 
 
 def _default_split(root: Path) -> str:
@@ -188,7 +201,8 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
     neighbours = data.neighbours()
     listener, speaker = data.ground_truth(suite.FRAMES, progress=True)
     speakers = [s for s, _ in data.samples]
-    predictions = load_predictions(Path(pred), speakers, suite.REACTIONS, suite.FRAMES)
-    return _report(speakers, predictions, listener, speaker, neighbours, jobs=jobs, seed=seed,
+    found = load_predictions(Path(pred), speakers, suite.REACTIONS, suite.FRAMES)
+    gt_names = [(str(data.emotion_path(lst)), str(data.emotion_path(spk))) for spk, lst in data.samples]
+    return _report(speakers, found, listener, speaker, neighbours, jobs=jobs, seed=seed,
                    inputs={"pred": str(pred), "gt": str(root), "split": split,
-                           "neighbours": str(neighbour_path(root, split))}, notes=[])
+                           "neighbours": str(neighbour_path(root, split))}, notes=[], gt_names=gt_names)

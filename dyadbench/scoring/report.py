@@ -27,6 +27,8 @@ class ScoreItem:
     suite's layout; ``partner`` is the partner's ground truth (None for single-participant sessions);
     ``audio`` the agent's own speech (gaze suite: BAS); ``identity`` a speaker/style id when known.
     Arrays of different lengths are truncated to the shortest by the suite (and counted).
+    ``pred_source`` / ``gt_source`` name the files the arrays were read from, for messages (default:
+    ``prediction <stem>`` / ``ground truth of <stem>``).
     """
 
     stem: str
@@ -37,6 +39,16 @@ class ScoreItem:
     identity: str | None = None
     fps: float = 25.0
     sample_rate: int = 16_000
+    pred_source: str | None = None
+    gt_source: str | None = None
+
+    @property
+    def pred_name(self) -> str:
+        return self.pred_source or f"prediction {self.stem}"
+
+    @property
+    def gt_name(self) -> str:
+        return self.gt_source or f"ground truth of {self.stem}"
 
 
 @dataclass
