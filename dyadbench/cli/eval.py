@@ -21,6 +21,7 @@ from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import EvalResult, load_result
+from dyadbench.scoring import policy
 
 EMBEDDED = "synthetic"
 
@@ -215,5 +216,8 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
         save_result(result, staging / "result.json", out / "result.json")
         write_per_clip(result, staging / "per_clip.csv")
     click.echo(summary(result))
+    for note in result.notes:  # implausible values (dyadbench.scoring.policy) are also said on stderr
+        if note.startswith(policy.WARNING):
+            click.echo(note, err=True)
     click.echo(f"wrote {out / 'predictions'}/ ({result.data.items} files), {out / 'result.json'} and "
                f"{out / 'per_clip.csv'}")
