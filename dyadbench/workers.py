@@ -2,15 +2,18 @@
 
 :func:`process_map` yields ``fn(item)`` for each item, in input order, computed by ``jobs`` worker
 processes. An exception raised by ``fn`` in a worker is raised by the iteration in the caller (same
-type and message: every :mod:`dyadbench.errors` type pickles to itself). An exception raised by the
-worker initialiser does not break the pool (which would surface as ``BrokenProcessPool``): it is
-kept and raised by the worker's first item instead. On an error, or when the caller stops iterating,
-pending items are cancelled rather than computed.
+type and message: every :mod:`dyadbench.errors` type pickles to itself); one whose type cannot make
+the trip back (a third-party exception that does not unpickle) arrives as a ``RuntimeError`` with its
+type, message and worker traceback, instead of breaking the pool (``BrokenProcessPool``). An exception
+raised by the worker initialiser does not break the pool either: it is kept and raised by the worker's
+first item instead. On an error, or when the caller stops iterating, pending items are cancelled
+rather than computed.
 """
 
 from __future__ import annotations
 
 import functools
+import pickle
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing.context import BaseContext
 from typing import Callable, Iterator, Sequence, TypeVar
@@ -35,7 +38,14 @@ def _guarded_init(initializer: Callable[..., None] | None, args: tuple) -> None:
 def _guarded_call(fn: Callable[[T], R], item: T) -> R:
     if _init_error is not None:
         raise _init_error
-    return fn(item)
+    try:
+        return fn(item)
+    except Exception as exc:
+        try:
+            pickle.loads(pickle.dumps(exc))
+        except Exception:  # noqa: BLE001  (any failure means the caller could not receive it)
+            raise RuntimeError(f"{type(exc).__name__} in a worker process: {exc}") from exc
+        raise
 
 
 def process_map(fn: Callable[[T], R], items: Sequence[T], *, jobs: int, context: BaseContext,

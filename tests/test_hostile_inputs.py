@@ -305,6 +305,17 @@ def _init_fails(message: str) -> None:
     raise ConfigError(message)
 
 
+class _Unpicklable(Exception):
+    """An exception whose constructor does not match its args (a pickled one cannot be rebuilt)."""
+
+    def __init__(self, a, b):
+        super().__init__(f"{a} and {b}")
+
+
+def _raises_unpicklable(item: int) -> int:
+    raise _Unpicklable(item, "b")
+
+
 def test_worker_errors_reach_the_caller_unchanged():
     fork = get_context("fork")
     got = process_map(_fails, range(3), jobs=2, context=fork)
@@ -316,6 +327,9 @@ def test_worker_errors_reach_the_caller_unchanged():
     with pytest.raises(ConfigError, match="^no such model$"):
         list(process_map(_fails, range(4), jobs=2, context=fork, initializer=_init_fails,
                          initargs=("no such model",)))
+    # an exception that cannot be sent back arrives as a RuntimeError naming it (not BrokenProcessPool)
+    with pytest.raises(RuntimeError, match="^_Unpicklable in a worker process: 0 and b$"):
+        list(process_map(_raises_unpicklable, range(2), jobs=2, context=fork))
 
 
 @pytest.mark.parametrize("error", [InputError("a.npz[exp]", "bad"), InputError(None, "no items"),
