@@ -5,8 +5,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import numpy as np
 
+from dyadbench.arrays import load_npy
 from dyadbench.cli.eval import open_splits, resolve_dataset
 from dyadbench.errors import InputError
 from dyadbench.outputs import check_cache, check_file
@@ -42,9 +42,7 @@ def trajectories(predictions: Path, clip_id: str, agent: str, data: Path | None,
     check_file(out, f"--out {out}")
     check_cache()
     path = predictions / f"{clip_id}_{agent}.npy"
-    if not path.is_file():
-        raise InputError(path, "prediction file not found")
-    pred = np.load(path)
+    pred = load_npy(path)  # a missing, non-NumPy or pickled file is an InputError naming it
     source, _ = open_splits(data, resolve_dataset(data, dataset), split)
     clip = source.load(clip_id)
     try:
