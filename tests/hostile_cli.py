@@ -1,4 +1,4 @@
-"""Helpers of the leakage and sweep hostile-input tests: the real command line in-process, small corpora."""
+"""Helpers of the hostile-input tests: the real command line in-process, small corpora."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ from dyadbench.synth.writers import write_clip
 SECONDS = 4.0  # short dialogues: four 1-s turns each, so every run streams in well under a second
 
 
-def dyadbench(capsys, *args) -> tuple[int, str]:
-    """Run ``dyadbench ARGS`` through its entry point: (exit status, stdout + stderr)."""
+def run_cli(capsys, *args) -> tuple[int, str, str]:
+    """Run ``dyadbench ARGS`` through its entry point: (exit status, stdout, stderr)."""
     capsys.readouterr()
     try:
         main([str(a) for a in args])
@@ -20,7 +20,13 @@ def dyadbench(capsys, *args) -> tuple[int, str]:
     except SystemExit as exc:
         code = exc.code
     captured = capsys.readouterr()
-    return code, captured.out + captured.err
+    return code, captured.out, captured.err
+
+
+def dyadbench(capsys, *args) -> tuple[int, str]:
+    """Run ``dyadbench ARGS`` through its entry point: (exit status, stdout + stderr)."""
+    code, out, err = run_cli(capsys, *args)
+    return code, out + err
 
 
 def write_dialogues(folder: Path, split: str, n: int, seed: int = 0) -> Path:

@@ -32,6 +32,7 @@ from dyadbench.datasets.react import ReactSplit
 from dyadbench.errors import ConfigError, InputError, OutputError
 from dyadbench.metrics.react import FRAMES, REACTIONS
 from dyadbench.workers import process_map
+from tests.hostile_cli import run_cli
 
 SUITES = ("dualtalk", "react", "l2l", "gaze")
 CLIPS = {"dualtalk": 2, "react": 1, "l2l": 1, "gaze": 2}
@@ -58,14 +59,8 @@ class Corpus:
 
 
 def dyadbench(capsys, *args) -> tuple[int, str, str]:
-    """``dyadbench ARGS`` through its entry point: (exit status, stdout, stderr)."""
-    capsys.readouterr()
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
+    """``dyadbench ARGS`` through its entry point: (exit status, stdout, stderr), never a traceback."""
+    code, out, err = run_cli(capsys, *args)
     assert "Traceback" not in out + err
     return code, out, err
 

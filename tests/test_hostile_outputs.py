@@ -13,15 +13,16 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from pathlib import Path
 
 import pytest
 
 from dyadbench import outputs
-from dyadbench.cli import main
 from dyadbench.results import EvalResult, load_result, result_files
 from dyadbench.synth.writers import write_dualtalk_split
+from tests.hostile_cli import dyadbench, error_line
 
 EVAL = ("eval", "--model", "mean-frame", "--split", "test", "--context", "1")
 
@@ -40,29 +41,9 @@ def data_root(tmp_path_factory) -> Path:
     return root
 
 
-def dyadbench(capsys, *args) -> tuple[int, str]:
-    """Run the CLI entry point in-process: (exit status, stdout + stderr)."""
-    capsys.readouterr()
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out + captured.err
-
-
 def snapshot(folder: Path) -> dict[str, bytes]:
     """Every file below ``folder`` (hidden ones too) by relative path, with its bytes."""
     return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
-
-
-def error_line(text: str) -> str:
-    """The one ``error: ...`` line of a failed command (and no traceback)."""
-    assert "Traceback" not in text
-    errors = [line for line in text.splitlines() if line.startswith("error: ")]
-    assert len(errors) == 1, text
-    return errors[0]
 
 
 def stems(run: Path) -> list[str]:
@@ -260,13 +241,35 @@ def test_a_cache_that_is_a_file_fails_before_any_work(data_root, tmp_path, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cache"]
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def _refuse_writes_below(folder: Path, monkeypatch) -> None:
+    """Make creating a folder or a file below ``folder`` fail with EACCES, as a read-only folder does."""
+    mkdir, mkstemp = os.mkdir, tempfile.mkstemp
+
+    def refused(path) -> bool:
+        return Path(path).is_relative_to(folder)
+
+    def guarded_mkdir(path, *args, **kwargs):
+        if refused(path):
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return mkdir(path, *args, **kwargs)
+
+    def guarded_mkstemp(*args, dir=None, **kwargs):
+        if dir is not None and refused(dir):
+            raise PermissionError(errno.EACCES, "Permission denied", str(dir))
+        return mkstemp(*args, dir=dir, **kwargs)
+
+    monkeypatch.setattr(os, "mkdir", guarded_mkdir)
+    monkeypatch.setattr(tempfile, "mkstemp", guarded_mkstemp)
+
+
 def test_a_read_only_output_folder_fails_before_any_work(data_root, tmp_path, capsys, monkeypatch):
     for target in WORK:
         monkeypatch.setattr(target, _boom)
     locked = tmp_path / "locked"
     locked.mkdir()
     locked.chmod(0o555)
+    if os.geteuid() == 0:  # root writes into read-only folders: the file system's refusal is simulated
+        _refuse_writes_below(locked, monkeypatch)
     try:
         bad = str(locked / "run")
         _check_refused(capsys, UNDER_A_FILE["eval"], data_root, bad, bad, "Permission denied")
