@@ -114,8 +114,7 @@ def test_model_info_records_weights_and_options(weights):
 
 @pytest.mark.parametrize("name", BUILD)
 def test_shipped_checkpoint_loads_and_streams(name):
-    if not SHIPPED[name].is_file():
-        pytest.skip(f"{SHIPPED[name]} not built")
+    assert SHIPPED[name].is_file(), f"committed checkpoint {SHIPPED[name]} is missing"
     model = BUILD[name][0](ModelOptions())
     out = stream_agent(model, make_clip("c3", 3.0), "speaker1", ProtocolConfig(context=1)).motion
     assert out.shape == (75, 56) and np.isfinite(out).all()
