@@ -96,12 +96,36 @@ def test_sid_orientations_are_argument_swaps():
     assert m.sid_gtfit(p, g, 10) != m.sid(p, g, 10)
 
 
-def test_diversity_is_seeded_and_matches_its_definition():
+class _Draws:
+    """A stand-in generator handing out fixed index draws and recording how it was asked."""
+
+    def __init__(self, *draws):
+        self.draws, self.calls = list(draws), []
+
+    def choice(self, *args, **kwargs):
+        self.calls.append((args, kwargs))
+        return self.draws.pop(0)
+
+
+def test_diversity_by_hand_on_fixed_draws():
+    # frames x_t = (t, 0, 0); pairs (i, 99 - i) for i = 0..99: |2i - 99| averages 2 (1 + 3 + ... + 99) / 100 = 50
+    x = np.zeros((120, 3))
+    x[:, 0] = np.arange(120)
+    rng = _Draws(np.arange(100), np.arange(99, -1, -1))
+    assert m.diversity(x, rng) == 50.0
+    assert rng.calls == [((120, 100), {"replace": False})] * 2
+    # 3-4-5 triangles: frames alternate (0, 0) and (3, 4); pairs (2k, 2k + 1) are 5 apart, (2k, 2k) 0 apart
+    y = np.zeros((100, 2))
+    y[1::2] = (3.0, 4.0)
+    first = np.arange(0, 100, 2).repeat(2)
+    second = np.stack([first[::2], first[::2] + 1], axis=1).ravel()
+    assert m.diversity(y, _Draws(first, second)) == 2.5
+
+
+def test_diversity_is_seeded_and_zero_for_a_still_sequence():
     x = _gauss(7, 150, 3)
-    value = m.diversity(x, np.random.default_rng(11))
-    rng = np.random.default_rng(11)
-    i, j = rng.choice(150, 100, replace=False), rng.choice(150, 100, replace=False)
-    assert value == np.mean(np.linalg.norm(x[i] - x[j], axis=1))
+    assert m.diversity(x, np.random.default_rng(11)) == m.diversity(x, np.random.default_rng(11))
+    assert m.diversity(x, np.random.default_rng(11)) != m.diversity(x, np.random.default_rng(12))
     assert m.diversity(np.ones((120, 3)), np.random.default_rng(0)) == 0.0
 
 
