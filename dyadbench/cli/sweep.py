@@ -159,10 +159,11 @@ def _csv(value: str, what: str) -> list[str]:
                    "code and data (the rows `dyadbench leaderboard` warns about), each with the settings it "
                    "records, writing over the file. Takes only --out, --jobs and --threads.")
 @click.pass_context
-def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float, tail: str,
-          history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
+def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
+          tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
-          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool, stale: bool) -> None:
+          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
+          stale: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
     \b
