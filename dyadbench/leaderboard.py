@@ -6,14 +6,23 @@
   --allow-train-overlap; :meth:`dyadbench.results.EvalResult.flags`) and where the number comes from
   (``source = dyadbench`` with its result file, or ``source = paper`` with the table it was transcribed
   from).
-- :func:`wide_table`: the paper layout of one suite (DualTalk/TIMAR: FD, P-FD, MSE, SID, rPCC for
-  exp/jaw/pose, scaled as printed), one row per model and setting, with ``rank`` by the first column
-  among non-oracle rows of the same source/dataset/split/protocol/context and ``items`` (predictions
-  scored; empty for published rows). Oracle and flagged rows are kept, marked and never ranked.
-- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per group in bold; oracle
-  rows marked †, flagged rows ‡).
+- :func:`wide_table`: the paper layout of one suite (the printed columns its module declares, in the
+  paper's order, scaled as printed: :mod:`dyadbench.metrics.columns`), one row per model and setting,
+  with ``rank_group`` (:func:`prediction_set`: the set of predictions the row was scored on),
+  ``rank`` by the suite's primary column in the direction it declares (e.g. DualTalk FD exp ascending,
+  gaze SimScore descending) among non-oracle rows of the same source/dataset/split/protocol/context
+  **and** prediction set, and ``items`` (predictions scored; empty for published rows). Rows scored on
+  different predictions (e.g. 40 items of the first 20 clips beside 1066 items) are never ranked
+  against each other. Oracle and flagged rows are kept, marked and never ranked; a suite without a
+  declaration is not ranked.
+- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per setting and prediction
+  set in bold; a setting with several prediction sets shows each under its own line; oracle rows marked †,
+  flagged rows ‡).
 - :func:`table_texts` / :func:`write_tables`: one build's tables, written as a set into a folder that
   afterwards holds exactly them (tables of suites no longer present are removed).
+
+Scales and directions come from the suite's declaration, so a result written before a key's scale was
+declared (e.g. gaze ``gt_fix_ratio``, recorded with scale 1) is shown with the declared scale.
 
 Published rows are stored as printed (scaled) in a CSV with columns ``source, reference, model,
 dataset, split, protocol, context`` and one column per metric key (e.g. ``leaderboards/paper_timar.csv``);
@@ -23,7 +32,6 @@ their raw values are the printed values divided by the scale.
 from __future__ import annotations
 
 import csv
-import importlib
 import io
 import math
 from pathlib import Path
@@ -34,30 +42,31 @@ import pandas as pd
 
 from dyadbench import atomic
 from dyadbench.errors import InputError
+from dyadbench.metrics.columns import ColumnSpec, SuiteColumns, declared
 from dyadbench.motion import LAYOUTS
 from dyadbench.protocol.config import variant_label
 from dyadbench.results import results_frame
 
 SETTING = ["source", "dataset", "split", "protocol", "context"]
 LONG_COLUMNS = ["source", "model", "oracle", "flags", "dataset", "split", "protocol", "context", "suite",
-                "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "seed", "tail",
+                "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "clips", "digest", "seed", "tail",
                 "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
 _VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed"]
 _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
 
 
-def suite_info(suite: str) -> tuple[list[str], dict[str, float], dict[str, bool | None]]:
-    """(paper columns in order, scale per key, higher_is_better per key) of a suite; empty if unknown."""
-    if suite == "dualtalk":
-        m = importlib.import_module("dyadbench.metrics.dualtalk")
-        keys = [k for name in m.PAPER_ORDER if m.METRIC_INFO[name].in_paper for k in m.METRIC_INFO[name].keys()]
-        return keys, dict(m.SCALE), dict(m.HIGHER_IS_BETTER)
-    if suite == "l2l":
-        m = importlib.import_module("dyadbench.metrics.l2l")
-        keys = m.keys(m.L2LParams())
-        better = {k: m.HIGHER_IS_BETTER[k.rsplit("_", 1)[0]] for k in keys}
-        return keys, {k: 1.0 for k in keys}, better
-    return [], {}, {}
+PUBLISHED = "published"
+
+
+def prediction_set(items: object, clips: object, digest: object) -> str:
+    """The label of the set of predictions a row was scored on: ``"1066 items / 533 clips"``, with
+    ``", data <first 12 hex digits>"`` when the result records the evaluated clips' content digest;
+    ``"published"`` for transcribed rows (no items recorded). Rows are ranked only among rows with the
+    same label (same items and clips, and the same digest, an unrecorded digest counting as its own)."""
+    if pd.isna(items):
+        return PUBLISHED
+    label = f"{int(items)} items / {int(clips)} clips" if pd.notna(clips) else f"{int(items)} items"
+    return label + (f", data {str(digest)[:12]}" if isinstance(digest, str) and digest else "")
 
 
 def _component(metric: str) -> str:
@@ -83,9 +92,9 @@ def paper_rows(path: str | Path, suite: str = "dualtalk") -> pd.DataFrame:
     needed = set(_PAPER_TEXT) | {"context"}
     if not needed <= set(header):
         raise InputError(path, f"missing columns {', '.join(sorted(needed - set(header)))}")
-    _, scale, better = suite_info(suite)
+    spec = declared(suite)
     metrics = [c for c in header if c not in needed]
-    unknown = [m for m in metrics if m not in scale]
+    unknown = [m for m in metrics if spec is None or spec.spec(m) is None]
     if unknown:
         raise InputError(path, f"unknown {suite} metric columns: {', '.join(unknown)}")
     rows = []
@@ -99,8 +108,8 @@ def paper_rows(path: str | Path, suite: str = "dualtalk") -> pd.DataFrame:
             value = _cell_number(path, line, metric, r[metric], float)
             rows.append({"source": r["source"], "model": r["model"], "oracle": False, "dataset": r["dataset"],
                          "split": r["split"], "protocol": r["protocol"], "context": context, "suite": suite,
-                         "metric": metric, "component": _component(metric), "raw": value / scale[metric],
-                         "scaled": value, "scale": scale[metric], "higher_is_better": better.get(metric),
+                         "metric": metric, "component": _component(metric), "raw": value / spec.scale(metric),
+                         "scaled": value, "scale": spec.scale(metric), "higher_is_better": spec.higher_is_better(metric),
                          "reference": f"{r['reference']} ({path.name})"})
     return pd.DataFrame(rows)
 
@@ -147,7 +156,7 @@ def long_table(result_paths: Iterable[str | Path], paper: Iterable[str | Path] =
     frame = results_frame(result_paths)
     _reject_duplicates(frame)
     frame = frame.assign(source="dyadbench", reference=frame["file"], component=frame["metric"].map(_component))
-    frame["higher_is_better"] = [suite_info(s)[2].get(m) for s, m in zip(frame["suite"], frame["metric"])]
+    _apply_declarations(frame)
     parts = [frame] + [paper_rows(p) for p in paper]
     parts = [p for p in parts if not p.empty]
     if not parts:
@@ -160,6 +169,23 @@ def long_table(result_paths: Iterable[str | Path], paper: Iterable[str | Path] =
                             "metric"], kind="stable").reset_index(drop=True)
 
 
+def _apply_declarations(frame: pd.DataFrame) -> None:
+    """In place: ``higher_is_better`` of every row, and ``scale`` / ``scaled`` = raw × scale of every declared
+    key from its suite's declaration (undeclared keys keep the scale their result recorded)."""
+    specs = [_spec(s, m) for s, m in zip(frame["suite"], frame["metric"])]
+    known = np.array([c is not None for c in specs], dtype=bool)
+    scale = np.array([c.scale if c is not None else math.nan for c in specs], dtype=np.float64)
+    frame["higher_is_better"] = pd.Series([None if c is None else c.higher_is_better for c in specs],
+                                          index=frame.index, dtype=object)
+    frame.loc[known, "scale"] = scale[known]
+    frame.loc[known, "scaled"] = frame.loc[known, "raw"].to_numpy(np.float64) * scale[known]
+
+
+def _spec(suite: str, metric: str) -> ColumnSpec | None:
+    columns = declared(suite)
+    return None if columns is None else columns.spec(metric)
+
+
 def _reject_duplicates(frame: pd.DataFrame) -> None:
     key = ["model", "flags", "dataset", "split", "protocol", "context", "turn_seconds", "tail", "history_agent",
            "cfg_scale", "seed", "metric"]
@@ -169,28 +195,52 @@ def _reject_duplicates(frame: pd.DataFrame) -> None:
         raise InputError(files[0], f"the same run appears in several result files: {', '.join(files)}")
 
 
+#: Rows are ranked only among rows of the same setting and prediction set (:func:`prediction_set`).
+RANK_GROUP = SETTING + ["rank_group"]
+
+
+def table_columns(suite: str, metrics: Iterable[str] = ()) -> list[str]:
+    """The keys a suite's paper-layout tables print, in order: its declared printed columns; for a suite
+    without a declaration, ``metrics`` in their order."""
+    columns = declared(suite)
+    return list(dict.fromkeys(metrics)) if columns is None else [c.key for c in columns.table_columns()]
+
+
 def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
-    """The paper-layout table of one suite from the long table (scaled values; see module docstring)."""
+    """The paper-layout table of one suite from the long table (scaled values; see module docstring).
+
+    Rank = ``rank(method="min")`` of the primary column within a :data:`RANK_GROUP`, ascending when lower
+    is better; rows without a value there are unranked. Rows are sorted by setting, then prediction set
+    (most items first; published rows apart), oracle last, rank, model.
+    """
     part = long[long["suite"] == suite]
-    columns, _, better = suite_info(suite)
-    if not columns:
-        columns = list(dict.fromkeys(part["metric"]))
-    index = SETTING + ["model", "oracle", "flags"]
+    columns = table_columns(suite, part["metric"])
+    index = SETTING + ["model", "oracle", "flags", "rank_group"]
+    head = index + ["rank", "items"]
     if part.empty:
-        return pd.DataFrame(columns=index + ["rank", "items"] + columns)
+        return pd.DataFrame(columns=head + columns)
     part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
-                       model=_variant_models(part), flags=part["flags"].fillna(""))
+                       model=_variant_models(part), flags=part["flags"].fillna(""),
+                       rank_group=[prediction_set(*r) for r in zip(part["items"], part["clips"], part["digest"])])
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
     items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
     wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + columns)
-    first = columns[0]
-    ascending = not bool(better.get(first, False))
-    wide["rank"] = pd.array([pd.NA] * len(wide), dtype="Int64")
+    wide["rank"] = _ranks(wide, declared(suite))
+    wide = wide.assign(_largest=-wide["items"].astype("float64")).sort_values(
+        SETTING + ["_largest", "rank_group", "oracle", "rank", "model"], kind="stable", na_position="last")
+    return wide[head + columns].reset_index(drop=True)
+
+
+def _ranks(wide: pd.DataFrame, columns: SuiteColumns | None) -> pd.Series:
+    """Rank of every row by the primary column among the ranked rows of its :data:`RANK_GROUP`."""
+    rank = pd.Series(pd.array([pd.NA] * len(wide), dtype="Int64"), index=wide.index)
     ranked = ~unranked(wide)
-    wide.loc[ranked, "rank"] = (wide[ranked].groupby(SETTING)[first]
-                                .rank(method="min", ascending=ascending).astype("Int64"))
-    wide = wide.sort_values(SETTING + ["oracle", "rank", "model"], kind="stable", na_position="last")
-    return wide[index + ["rank", "items"] + columns].reset_index(drop=True)
+    if columns is None or columns.primary not in wide or not ranked.any():
+        return rank
+    ascending = not columns.higher_is_better(columns.primary)
+    values = wide.loc[ranked].groupby(RANK_GROUP)[columns.primary].rank(method="min", ascending=ascending)
+    rank.loc[ranked] = values.astype("Int64")
+    return rank
 
 
 def unranked(rows: pd.DataFrame) -> pd.Series:
@@ -218,36 +268,31 @@ def _variant_models(part: pd.DataFrame) -> pd.Series:
 
 
 def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) -> str:
-    """A LaTeX tabular of a wide table; best ranked value per column and group in bold, oracle marked."""
-    columns, scale, better = suite_info(suite)
-    columns = columns or [c for c in wide.columns
-                          if c not in SETTING + ["model", "oracle", "flags", "rank", "items"]]
-    header = " & ".join(["Model"] + [_latex_header(c, scale.get(c, 1.0), better.get(c)) for c in columns])
+    """A LaTeX tabular of a wide table: one block per setting, best ranked value per column, setting and
+    prediction set in bold; a setting with several prediction sets heads each with its label."""
+    specs = declared(suite)
+    columns = table_columns(suite, [c for c in wide.columns if c not in SETTING + WIDE_TEXT])
+    header = " & ".join(["Model"] + [_latex_header(c, specs) for c in columns])
     lines = [r"\begin{tabular}{l" + "r" * len(columns) + "}", r"\toprule", header + r" \\", r"\midrule"]
-    for setting, group in wide.groupby(SETTING, sort=False):
+    several = False
+    for setting, block in wide.groupby(SETTING, sort=False):
         source, dataset, split, protocol, context = setting
         label = f"{dataset} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
         lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{_escape(label)}}}}} \\")
-        best = {}
-        ranked = group[~unranked(group)]
-        for c in columns:
-            values = ranked[c].astype(float)
-            if better.get(c) is not None and values.notna().any():
-                best[c] = values.max() if better[c] else values.min()
-        for _, row in group.iterrows():
-            name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
-                r"$^\ddagger$" if row["flags"] else "")
-            cells = [name]
-            for c in columns:
-                v = float(row[c]) if pd.notna(row[c]) else math.nan
-                text = "--" if math.isnan(v) else f"{v:.{digits}f}"
-                if c in best and row.name in ranked.index and not math.isnan(v) and np.isclose(v, best[c]):
-                    text = rf"\textbf{{{text}}}"
-                cells.append(text)
-            lines.append(" & ".join(cells) + r" \\")
+        sets = list(dict.fromkeys(block["rank_group"]))
+        several = several or len(sets) > 1
+        for rank_group in sets:
+            group = block[block["rank_group"] == rank_group]
+            if len(sets) > 1:
+                lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\quad ranked among: "
+                             rf"{_escape(rank_group)}}} \\")
+            lines += _latex_rows(group, columns, specs, digits)
         lines.append(r"\midrule")
     lines[-1] = r"\bottomrule"
     lines.append(r"\end{tabular}")
+    if several:
+        lines.append(r"% Rows are ranked, and best values bolded, only among rows scored on the same predictions "
+                     r"(same items, clips and data digest): each such set is headed ``ranked among''.")
     if wide["oracle"].astype(bool).any():
         lines.append(r"% $^\dagger$ oracle: copies the ground truth; a pipeline check, never ranked.")
     if (wide["flags"] != "").any():
@@ -255,11 +300,47 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
     return "\n".join(lines) + "\n"
 
 
-def _latex_header(key: str, scale: float, higher: bool | None) -> str:
-    name, _, comp = key.rpartition("_")
-    arrow = "" if higher is None else (r"$\uparrow$" if higher else r"$\downarrow$")
-    factor = "" if scale == 1.0 else rf" $\times10^{{{int(round(math.log10(scale)))}}}$"
-    return f"{_escape(name.upper().replace('PFD', 'P-FD').replace('RPCC', 'rPCC'))}{arrow} {comp}{factor}"
+#: The wide table's text columns besides :data:`SETTING`.
+WIDE_TEXT = ["model", "oracle", "flags", "rank_group", "rank", "items"]
+
+
+def _latex_rows(group: pd.DataFrame, columns: list[str], specs: SuiteColumns | None, digits: int) -> list[str]:
+    """The rows of one prediction set; the best value of each ordered column among its ranked rows in bold
+    (when there are at least two)."""
+    best = {}
+    ranked = group[~unranked(group)]
+    for c in columns if len(ranked) > 1 else []:
+        values = ranked[c].astype(float)
+        higher = None if specs is None else specs.higher_is_better(c)
+        if higher is not None and values.notna().any():
+            best[c] = values.max() if higher else values.min()
+    lines = []
+    for _, row in group.iterrows():
+        name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
+            r"$^\ddagger$" if row["flags"] else "")
+        cells = [name]
+        for c in columns:
+            v = float(row[c]) if pd.notna(row[c]) else math.nan
+            text = "--" if math.isnan(v) else f"{v:.{digits}f}"
+            if c in best and row.name in ranked.index and not math.isnan(v) and np.isclose(v, best[c]):
+                text = rf"\textbf{{{text}}}"
+            cells.append(text)
+        lines.append(" & ".join(cells) + r" \\")
+    return lines
+
+
+def _latex_header(key: str, specs: SuiteColumns | None) -> str:
+    r"""The declared header with its direction arrow and scale (e.g. ``FD jaw$\downarrow$ $\times10^{3}$``,
+    ``saccade (\%)``); an undeclared key as it is."""
+    spec = None if specs is None else specs.spec(key)
+    if spec is None:
+        return _escape(key)
+    arrow = {True: r"$\uparrow$", False: r"$\downarrow$", None: ""}[spec.higher_is_better]
+    if spec.unit is not None:
+        factor = f" ({_escape(spec.unit)})"
+    else:
+        factor = "" if spec.scale == 1.0 else rf" $\times10^{{{int(round(math.log10(spec.scale)))}}}$"
+    return f"{_escape(spec.header)}{arrow}{factor}"
 
 
 def _escape(text: str) -> str:

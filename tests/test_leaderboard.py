@@ -55,10 +55,11 @@ def test_long_table_has_one_row_per_model_setting_and_metric(results_dir):
 
 def test_wide_table_ranks_everyone_but_the_oracle(results_dir):
     wide = wide_table(long_table([results_dir]))
-    assert list(wide.columns[:9]) == ["source", "dataset", "split", "protocol", "context", "model", "oracle",
-                                      "flags", "rank"]
-    assert list(wide.columns[9:13]) == ["items", "fd_exp", "fd_jaw", "fd_pose"] and wide.columns[-1] == "rpcc_pose"
-    assert (wide["flags"] == "").all()
+    assert list(wide.columns[:10]) == ["source", "dataset", "split", "protocol", "context", "model", "oracle",
+                                       "flags", "rank_group", "rank"]
+    assert list(wide.columns[10:14]) == ["items", "fd_exp", "fd_jaw", "fd_pose"] and wide.columns[-1] == "rpcc_pose"
+    assert (wide["flags"] == "").all() and wide["rank_group"].nunique() == 1
+    assert wide["rank_group"][0].startswith("4 items / 2 clips, data ")  # one prediction set, digest recorded
     assert (wide["items"] == 4).all()
     for _, group in wide.groupby("context"):
         ranked = group[~group["oracle"]]
@@ -121,7 +122,7 @@ def test_latex_marks_oracle_and_best(results_dir):
     wide = wide_table(long_table([results_dir]))
     tex = latex_table(wide)
     assert tex.startswith(r"\begin{tabular}") and r"\end{tabular}" in tex
-    assert r"oracle$^\dagger$" in tex and r"\textbf{" in tex and r"FD$\downarrow$ jaw $\times10^{3}$" in tex
+    assert r"oracle$^\dagger$" in tex and r"\textbf{" in tex and r"FD jaw$\downarrow$ $\times10^{3}$" in tex
     oracle_line = next(line for line in tex.splitlines() if line.startswith("oracle"))
     assert r"\textbf" not in oracle_line
 

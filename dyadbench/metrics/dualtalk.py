@@ -33,6 +33,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from dyadbench.errors import InputError
+from dyadbench.metrics.columns import ColumnSpec, SuiteColumns
 from dyadbench.metrics.entropy import kmeans_entropy
 from dyadbench.metrics.frechet import frechet_between
 from dyadbench.motion import FLAME56, FLAME_COMPONENTS
@@ -99,12 +100,19 @@ KEYS: tuple[str, ...] = tuple(k for m in METRICS for k in m.keys())
 PAPER_ORDER: tuple[str, ...] = (tuple(m.name for m in METRICS if m.in_paper)
                                 + tuple(m.name for m in METRICS if not m.in_paper))
 
+#: The suite's columns (:mod:`dyadbench.metrics.columns`) in :data:`PAPER_ORDER`: the DualTalk/TIMAR
+#: table columns are printed in the paper layout, the others kept in results and ``long.csv``; ranked
+#: by FD exp (lower is better), the tables' first column.
+COLUMNS = SuiteColumns("dualtalk", tuple(
+    ColumnSpec(key, f"{METRIC_INFO[name].header} {c}", METRIC_INFO[name].higher_is_better,
+               METRIC_INFO[name].scale[c], table=METRIC_INFO[name].in_paper)
+    for name in PAPER_ORDER for key, c in zip(METRIC_INFO[name].keys(), FLAME_COMPONENTS)), primary="fd_exp")
+
 #: Publication scale factor of every key.
-SCALE: dict[str, float] = {f"{m.name}_{c}": m.scale[c] for m in METRICS for c in FLAME_COMPONENTS}
+SCALE: dict[str, float] = {c.key: c.scale for c in COLUMNS.columns}
 
 #: higher_is_better of every key (None: descriptive statistic, compare with the ground-truth value).
-HIGHER_IS_BETTER: dict[str, bool | None] = {
-    f"{m.name}_{c}": m.higher_is_better for m in METRICS for c in FLAME_COMPONENTS}
+HIGHER_IS_BETTER: dict[str, bool | None] = {c.key: c.higher_is_better for c in COLUMNS.columns}
 
 
 def fd(p: np.ndarray, g: np.ndarray) -> float:

@@ -18,6 +18,7 @@ from typing import Protocol
 import numpy as np
 
 from dyadbench.errors import InputError
+from dyadbench.metrics.columns import ColumnSpec, SuiteColumns
 from dyadbench.metrics.fixations import (DISPERSION_THRESHOLD_DEG, MIN_FIXATION_FRAMES, fixation_counts,
                                          idt_labels)
 from dyadbench.motion import GAZE7
@@ -56,6 +57,51 @@ METRICS: dict[str, MetricInfo] = {m.name: m for m in (
     MetricInfo("bas_delta", True, "-", "BAS with the sequence's own speech minus BAS with shuffled speech"),
     MetricInfo("style_ce", False, "-", "1 - cos(style(gt window), style(pred window)), mean over windows"),
 )}
+
+GROUP_HEADERS = {"all": "All", "gaze": "Gaze", "head": "Head"}
+#: BAS variants the suite reports per group (``dyadbench.scoring.gaze``): matched, shuffled speech, and
+#: their difference, in both directions (m2a, a2m), for the prediction and (``gt_``) the ground truth.
+BAS_VARIANTS = ("bas", "bas_shuffled", "bas_delta", "bas_a2m", "bas_a2m_shuffled", "bas_a2m_delta")
+
+
+def _column(key: str, header: str, table: bool = True) -> ColumnSpec:
+    """A key's declaration: its metric's direction (:data:`METRICS`; None for ground-truth reference values
+    ``gt_*``, shuffled-speech references and the saccade ratio, judged against the ground truth's), scale
+    100 printed as % for the fixation/saccade ratios."""
+    base = key
+    for group in GROUPS:
+        base = base.removesuffix(f"_{group}")
+    base = base.replace("bas_a2m", "bas")
+    reference = key.startswith("gt_") or "shuffled" in key or base == "saccade_ratio"
+    direction = None if reference else METRICS[base].higher_is_better
+    percent = base.removeprefix("gt_") in ("fix_ratio", "saccade_ratio")
+    return ColumnSpec(key, header, direction, 100.0 if percent else 1.0, "%" if percent else None, table)
+
+
+def _columns() -> SuiteColumns:
+    """StyGazeTalk Table 2 (per group: MAE, Vel, MEE, BAS; CE after All), Table 3 (saccade %, fixation %,
+    CompScore, SimScore), dyadbench's printed extras and the ground truth's Table 3 row; then every other
+    key the suite reports (kept in results and ``long.csv``). Ranked by SimScore (``sim_gt``, higher is
+    better), the paper's summary of gaze behaviour."""
+    table2 = []
+    for group, title in GROUP_HEADERS.items():
+        table2 += [(f"{m}_{group}", f"{title} {h}") for m, h in (("mae", "MAE"), ("vel", "Vel"), ("mee", "MEE"))]
+        table2 += [("style_ce", "CE")] if group == "all" else []
+        table2 += [(f"bas_{group}", f"{title} BAS")]
+    printed = table2 + [
+        ("saccade_ratio", "saccade"), ("fix_ratio", "fixation"), ("comp_score", "CompScore"), ("sim_gt", "SimScore"),
+        ("bas_delta_head", "Head dBAS"), ("sim_gt_seq", "Sim_seq"),
+        ("gt_saccade_ratio", "GT saccade"), ("gt_fix_ratio", "GT fixation"), ("gt_comp_score", "GT CompScore")]
+    others = ([f"{m}_{g}" for m in ("vel_abs", "mee_frame") for g in GROUPS]
+              + [f"{prefix}{v}_{g}" for prefix in ("", "gt_") for v in BAS_VARIANTS for g in GROUPS])
+    seen = {key for key, _ in printed}
+    return SuiteColumns("gaze", tuple([_column(k, h) for k, h in printed]
+                                      + [_column(k, k, table=False) for k in others if k not in seen]),
+                        primary="sim_gt")
+
+
+#: The suite's columns (:mod:`dyadbench.metrics.columns`).
+COLUMNS = _columns()
 
 
 def check_motion(motion: np.ndarray, name: str) -> np.ndarray:

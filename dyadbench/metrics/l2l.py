@@ -31,6 +31,7 @@ import numpy as np
 
 from dyadbench.errors import InputError
 from dyadbench.metrics import dualtalk
+from dyadbench.metrics.columns import ColumnSpec, SuiteColumns
 from dyadbench.metrics.entropy import fit_kmeans, occupancy_entropy
 from dyadbench.motion import FLAME56
 
@@ -53,15 +54,24 @@ class L2LParams:
         return asdict(self)
 
 
-#: metric name -> higher_is_better (None: compare with the ground truth's value)
+#: metric name -> higher_is_better (None: compare with the ground truth's value; ``var_gt`` and ``si_gt``
+#: are the ground truth's own values, references rather than scores)
 HIGHER_IS_BETTER = {"l2": False, "fd": False, "pfd": False, "var": None, "var_gt": None, "si": True,
-                    "si_gt": True, "rpcc": False}
+                    "si_gt": None, "rpcc": False}
 METRIC_NAMES = tuple(HIGHER_IS_BETTER)
+HEADERS = {"l2": "L2", "fd": "FD", "pfd": "P-FD", "var": "Var", "var_gt": "Var-GT", "si": "SI", "si_gt": "SI-GT",
+           "rpcc": "rPCC"}
 PER_SEQUENCE = ("l2", "fd", "pfd")
 
 
 def keys(params: L2LParams = L2LParams()) -> list[str]:
     return [f"{m}_{c}" for m in METRIC_NAMES for c in params.components]
+
+
+#: The suite's columns (:mod:`dyadbench.metrics.columns`), unscaled, in :func:`keys` order (SFMS Table I's
+#: metrics, each per component); ranked by L2 exp (lower is better), the first column.
+COLUMNS = SuiteColumns("l2l", tuple(ColumnSpec(f"{m}_{c}", f"{HEADERS[m]} {c}", HIGHER_IS_BETTER[m])
+                                    for m in METRIC_NAMES for c in L2LParams().components), primary="l2_exp")
 
 
 def _check(sequences: list[np.ndarray], name: str) -> list[np.ndarray]:

@@ -29,6 +29,7 @@ from tqdm import tqdm
 
 from dyadbench.errors import InputError
 from dyadbench.metrics.ccc import max_ccc_over_neighbours, series_stats
+from dyadbench.metrics.columns import ColumnSpec, SuiteColumns
 from dyadbench.metrics.dtw import min_weighted_dtw
 from dyadbench.metrics.tlcc import float32_mean, tlcc_offsets
 
@@ -64,7 +65,11 @@ METRICS: tuple[MetricInfo, ...] = (
 )
 METRIC_INFO = {m.name: m for m in METRICS}
 KEYS = tuple(m.name for m in METRICS)
-HIGHER_IS_BETTER = {m.name: m.higher_is_better for m in METRICS}
+#: The suite's columns (:mod:`dyadbench.metrics.columns`), unscaled, in the challenge's order; ranked by
+#: FRCorr (appropriateness, higher is better).
+COLUMNS = SuiteColumns("react", tuple(ColumnSpec(m.name, m.name, m.higher_is_better) for m in METRICS),
+                       primary="FRCorr")
+HIGHER_IS_BETTER = {c.key: c.higher_is_better for c in COLUMNS.columns}
 NOT_COMPUTED = {"FRRea": "realism (FID of rendered frames) needs FaceVerse, PIRender and the videos; "
                          "dyadbench scores the 25-d emotion features only"}
 
@@ -315,8 +320,7 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
 
     ``per_sample`` holds (N,) arrays whose mean is the metric: ``FRCorr`` and ``FRDist`` (sum over the
     reactions of the best value over neighbours), ``FRDiv``, ``FRVar`` (mean variance of the sample's
-    reactions), ``FRSyn`` (TLCC offset of reaction 0) and ``FRSyn_all`` (mean offset of the sample's
-    reactions; its mean over samples equals the metric up to float32 rounding). FRDvs has no per-sample form.
+    reactions) and ``FRSyn`` (TLCC offset of reaction 0). FRDvs has no per-sample form.
     """
     p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
     corr = _sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))
@@ -336,7 +340,7 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
     }
     var = variances.mean(axis=(1, 2))
     per_sample = {"FRCorr": corr, "FRDist": dist, "FRDiv": div, "FRVar": var,
-                  "FRSyn": offsets[:, 0].astype(np.float64), "FRSyn_all": offsets.mean(axis=1, dtype=np.float64)}
+                  "FRSyn": offsets[:, 0].astype(np.float64)}
     return metrics, per_sample
 
 

@@ -200,8 +200,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         protocol=ProtocolRecord(name=protocol_name, turn_seconds=config.turn_seconds, context=config.context,
                                 tail=config.tail, history_agent=config.history_agent,
                                 cfg_scale=float(options.cfg_scale), seed=config.seed),
-        suite=suite, metrics=dict(report.metrics), scaled=dict(report.scaled),
-        scaling={c.key: c.scale for c in report.columns} or {k: 1.0 for k in report.metrics},
+        suite=suite, metrics=dict(report.metrics), scaled=report.scaled, scaling=report.scaling,
         per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
         notes=overlap_notes(train) + list(report.notes)
         + ([f"scores reused: this process already scored byte-identical predictions "
@@ -209,8 +208,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         predictions=None if temporary else str(pred_dir),
         timing=TimingRecord(wall_s=time.perf_counter() - started, model_s=model_s, turns=len(latencies),
                             mean_turn_latency_s=model_s / max(len(latencies), 1), threads=threads),
-        environment=environment(), created_utc=utc_now(), configuration=requested,
-        uncertainty=dict(report.uncertainty), uncertainty_method=dict(report.uncertainty_method))
+        environment=environment(), created_utc=utc_now(), configuration=requested)
 
 
 _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()

@@ -10,9 +10,7 @@ with the bad-input policy of every suite (:mod:`dyadbench.scoring.policy`), trun
 length (counted), and scored with :func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by
 ``derive_seed(seed, stem)``. Predictions with NaN/inf values or fewer than
 :data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are excluded and listed with the reason;
-predictions without ground truth are listed as extra. Aggregation is the plain mean over clips; every
-column's standard error and bootstrap CI resample dialogues (both speakers of a clip together,
-:mod:`dyadbench.uncertainty`).
+predictions without ground truth are listed as extra. Aggregation is the plain mean over clips.
 """
 
 from __future__ import annotations
@@ -26,16 +24,16 @@ import numpy as np
 import scipy
 import sklearn
 
-from dyadbench import uncertainty
 from dyadbench.arrays import check_motion
 from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import InputError
 from dyadbench.metrics import dualtalk as suite
+from dyadbench.metrics.columns import ColumnSpec
 from dyadbench.motion import FLAME56
 from dyadbench.scoring import policy
 from dyadbench.scoring.parallel import THREADS_PER_JOB, map_items
 from dyadbench.scoring.predictions import PredictionFile, open_predictions
-from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
+from dyadbench.scoring.report import ScoreItem, ScoreReport
 from dyadbench.seeding import derive_seed
 
 SUITE = "dualtalk"
@@ -108,22 +106,10 @@ def _score_job(job: _Job) -> _Outcome:
     return outcome
 
 
-def columns() -> list[Column]:
-    """Printed columns in the DualTalk/TIMAR table order with the publication scale in the header."""
-    cols = []
-    for name in suite.PAPER_ORDER:
-        info = suite.METRIC_INFO[name]
-        for key in info.keys():
-            scale = suite.SCALE[key]
-            component = key[len(name) + 1:]
-            header = f"{info.header} {component}" + ("" if scale == 1 else f" x{_power(scale)}")
-            cols.append(Column(key, header, scale))
-    return cols
-
-
-def _power(scale: float) -> str:
-    exponent = round(math.log10(scale))
-    return "10" if exponent == 1 else f"1e{exponent}"
+def columns() -> list[ColumnSpec]:
+    """Printed columns: every declared key (:data:`dyadbench.metrics.dualtalk.COLUMNS`) in the DualTalk/TIMAR
+    table order, then dyadbench's extra columns."""
+    return list(suite.COLUMNS.columns)
 
 
 def _aggregate(rows: list[dict]) -> tuple[dict[str, float], dict[str, list[str]]]:
@@ -163,7 +149,6 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     metrics, undefined = _aggregate(rows)
-    spread, method = uncertainty.estimate(SUITE, rows, list(suite.KEYS), seed=seed)
     present = {job.stem for job in jobs_list}
     notes = (policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
              + _undefined_notes(undefined, len(rows)))
@@ -173,7 +158,6 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
     return ScoreReport(
         suite=SUITE,
         metrics=metrics,
-        scaled={k: v * suite.SCALE[k] for k, v in metrics.items()},
         per_item=rows,
         excluded=excluded,
         coverage={"expected": len(expected), "scored": len(rows),
@@ -182,8 +166,6 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
         config=_config(seed, jobs, inputs),
         notes=notes,
         columns=columns(),
-        uncertainty=spread,
-        uncertainty_method=method,
     )
 
 

@@ -13,11 +13,6 @@ of its mean and counted in the notes.
 
 The style cosine error needs a frozen style encoder (:class:`dyadbench.metrics.gaze.StyleEncoder`):
 pass it as ``style_encoder``; without one ``style_ce`` is not reported.
-
-Uncertainty (:mod:`dyadbench.uncertainty`, resampling sessions): the means over sequences get a
-cluster-robust standard error and a bootstrap CI; the pooled columns (fix/saccade ratio, CompScore, for
-prediction and ground truth, and ``sim_gt``) are recomputed from the resampled frame counts
-(:func:`pooled_statistics`).
 """
 
 from __future__ import annotations
@@ -27,7 +22,6 @@ from pathlib import Path
 
 import numpy as np
 
-from dyadbench import uncertainty
 from dyadbench.arrays import check_motion
 from dyadbench.datasets.gaze import SessionFile, open_split
 from dyadbench.errors import InputError
@@ -37,7 +31,7 @@ from dyadbench.motion import FPS, GAZE7
 from dyadbench.scoring import policy
 from dyadbench.scoring.parallel import map_items
 from dyadbench.scoring.predictions import open_predictions
-from dyadbench.scoring.report import Column, ScoreItem, ScoreReport
+from dyadbench.scoring.report import ScoreItem, ScoreReport
 from dyadbench.seeding import rng
 
 SUITE = "gaze"
@@ -67,18 +61,7 @@ class GazeSuiteConfig:
                 "eyes": self.idt_eyes, "include_breaking_sample": self.idt_include_breaking_sample}
 
 
-COLUMNS = [
-    Column("mae_all", "All MAE"), Column("vel_all", "All Vel"), Column("mee_all", "All MEE"),
-    Column("style_ce", "CE"), Column("bas_all", "All BAS"),
-    Column("mae_gaze", "Gaze MAE"), Column("vel_gaze", "Gaze Vel"), Column("mee_gaze", "Gaze MEE"),
-    Column("bas_gaze", "Gaze BAS"),
-    Column("mae_head", "Head MAE"), Column("vel_head", "Head Vel"), Column("mee_head", "Head MEE"),
-    Column("bas_head", "Head BAS"), Column("bas_delta_head", "Head dBAS"),
-    Column("saccade_ratio", "saccade %", 100.0), Column("fix_ratio", "fixation %", 100.0),
-    Column("comp_score", "CompScore"), Column("sim_gt", "SimScore"), Column("sim_gt_seq", "Sim_seq"),
-]
 NOT_METRICS = {"clip", "frames", "truncated", "speech_onsets"}
-PERCENT_KEYS = {"fix_ratio", "saccade_ratio", "gt_fix_ratio", "gt_saccade_ratio"}
 
 
 @dataclass(frozen=True)
@@ -203,38 +186,6 @@ def _add_style(results: list[dict], items: dict[str, ScoreItem], cfg: GazeSuiteC
                                   else float("nan"))
 
 
-def pooled_statistics(counts: list[dict]) -> dict[str, uncertainty.SetStatistic]:
-    """The split-level columns as functions of sequence weights w (B, N) (:mod:`dyadbench.uncertainty`;
-    all ones: the split's values): FixRatio = Σ w·fix / max(1, Σ w·(fix + sac)) over pooled frame counts,
-    CompScore = Σ w·comp_sum / Σ w·comp_n over pooled velocity frames, for the prediction and the ground
-    truth, and SimWithGT from those aggregates (:func:`dyadbench.metrics.gaze.sim_with_gt`)."""
-    total = {k: np.array([c[k] for c in counts], dtype=np.float64) for k in counts[0]}
-
-    def fix(who: str) -> uncertainty.SetStatistic:
-        return lambda w: (w @ total[f"{who}_fix"]) / np.maximum(1.0, w @ (total[f"{who}_fix"] + total[f"{who}_sac"]))
-
-    def comp(who: str) -> uncertainty.SetStatistic:
-        return uncertainty.ratio(total[f"{who}_comp_sum"], total[f"{who}_comp_n"])
-
-    def saccade(who: str) -> uncertainty.SetStatistic:
-        return lambda w: 1.0 - fix(who)(w)
-
-    return {"fix_ratio": fix("pred"), "saccade_ratio": saccade("pred"), "comp_score": comp("pred"),
-            "gt_fix_ratio": fix("gt"), "gt_saccade_ratio": saccade("gt"), "gt_comp_score": comp("gt"),
-            "sim_gt": lambda w: gaze.sim_with_gt(fix("gt")(w), comp("gt")(w), fix("pred")(w), comp("pred")(w))}
-
-
-def higher_is_better(key: str) -> bool | None:
-    """Direction of a suite key (None: closer to the ground truth's value, or a reference value)."""
-    base = key.removeprefix("gt_")
-    for group in gaze.GROUPS:
-        base = base.removesuffix(f"_{group}")
-    if "shuffled" in base or base == "saccade_ratio":
-        return None
-    base = base.replace("bas_a2m", "bas")
-    return gaze.METRICS[base].higher_is_better
-
-
 def _nanmean(values: list[float]) -> float:
     arr = np.asarray(values, dtype=np.float64)
     arr = arr[np.isfinite(arr)]
@@ -290,22 +241,24 @@ def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteCon
     keys = dict.fromkeys(k for row in per_item for k in row
                          if k not in NOT_METRICS and not k.startswith(("motion_beats_", "bas_note_")))
     metrics = {k: _nanmean([row.get(k, float("nan")) for row in per_item]) for k in keys}
-    pooled = pooled_statistics([r["counts"] for r in results])
-    metrics.update({k: float(fn(np.ones((1, len(results))))[0]) for k, fn in pooled.items()})
-    spread, method = uncertainty.estimate(SUITE, per_item, [k for k in metrics if k not in pooled], seed=seed,
-                                          set_level=pooled)
-    scaled = {k: v * (100.0 if k in PERCENT_KEYS else 1.0) for k, v in metrics.items()}
+    if results:
+        total = {k: sum(r["counts"][k] for r in results) for k in results[0]["counts"]}
+        fix = total["pred_fix"] / max(1, total["pred_fix"] + total["pred_sac"])
+        gt_fix = total["gt_fix"] / max(1, total["gt_fix"] + total["gt_sac"])
+        comp = total["pred_comp_sum"] / total["pred_comp_n"]
+        gt_comp = total["gt_comp_sum"] / total["gt_comp_n"]
+        metrics.update(fix_ratio=fix, saccade_ratio=1.0 - fix, comp_score=comp, gt_fix_ratio=gt_fix,
+                       gt_saccade_ratio=1.0 - gt_fix, gt_comp_score=gt_comp,
+                       sim_gt=gaze.sim_with_gt(gt_fix, gt_comp, fix, comp))
     config_dict = {**asdict(cfg), "seed": seed, "fps": FPS, "velocity": "first difference, deg/frame",
                    "aggregation": "error metrics: mean over sequences; fix_ratio/comp_score: pooled frames; "
                                   "sim_gt: from split-level aggregates",
                    "style_encoder": getattr(style_encoder, "digest", None),
-                   "higher_is_better": {k: higher_is_better(k) for k in metrics}}
-    columns = [c for c in COLUMNS if c.key in metrics]
-    return ScoreReport(suite=SUITE, metrics=metrics, scaled=scaled, per_item=per_item, excluded=excluded,
+                   "higher_is_better": gaze.COLUMNS.directions(metrics)}
+    return ScoreReport(suite=SUITE, metrics=metrics, per_item=per_item, excluded=excluded,
                        coverage={"expected": coverage["expected"], "scored": len(per_item),
                                  "missing": coverage["missing"], "extra": coverage["extra"]},
-                       config=config_dict, notes=notes, columns=columns, uncertainty=spread,
-                       uncertainty_method=method)
+                       config=config_dict, notes=notes, columns=gaze.COLUMNS.table_columns(set(metrics)))
 
 
 def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,

@@ -17,6 +17,7 @@ import pandas as pd
 
 from dyadbench import __version__
 from dyadbench import atomic
+from dyadbench.metrics.columns import ColumnSpec, declared
 
 
 @dataclass(frozen=True)
@@ -52,39 +53,36 @@ class ScoreItem:
 
 
 @dataclass
-class Column:
-    """One printed column: metric key, header, publication scale factor."""
-
-    key: str
-    header: str
-    scale: float = 1.0
-
-
-@dataclass
 class ScoreReport:
     """Scores of one suite over one set of predictions.
 
     - ``metrics``: raw mean over scored items, keyed by metric name.
-    - ``scaled``: the same keys times their publication scale (equal to ``metrics`` for unscaled suites).
+    - ``scaled`` / ``scaling``: the same keys times their publication scale, and the scale, both from the
+      suite's one declaration (:func:`dyadbench.metrics.columns.declared`; scale 1 for undeclared keys).
     - ``per_item``: one dict per scored item; first key ``clip`` (the prediction's stem / id).
     - ``excluded``: ``{"clip": ..., "reason": ...}`` for predictions present but not scored.
     - ``coverage``: ``{"expected": n, "scored": n, "missing": [...], "extra": [...]}`` vs ground truth.
-    - ``uncertainty`` / ``uncertainty_method``: each column's standard error and bootstrap CI over
-      dialogues, computed when scoring (:func:`dyadbench.uncertainty.estimate`), and how.
     """
 
     suite: str
     metrics: dict[str, float]
-    scaled: dict[str, float]
     per_item: list[dict]
     excluded: list[dict] = field(default_factory=list)
     coverage: dict = field(default_factory=dict)
     config: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
-    columns: list[Column] = field(default_factory=list)  # printed table order (paper order)
-    uncertainty: dict = field(default_factory=dict)  # metric -> se, ci_low, ci_high (dyadbench.uncertainty)
-    uncertainty_method: dict = field(default_factory=dict)  # method, resamples, level, seed, clusters
+    columns: list[ColumnSpec] = field(default_factory=list)  # printed table order (paper order)
     dyadbench_version: str = __version__
+
+    @property
+    def scaled(self) -> dict[str, float]:
+        columns = declared(self.suite)
+        return dict(self.metrics) if columns is None else columns.scaled(self.metrics)
+
+    @property
+    def scaling(self) -> dict[str, float]:
+        columns = declared(self.suite)
+        return {k: 1.0 for k in self.metrics} if columns is None else columns.scaling(self.metrics)
 
     @property
     def n_scored(self) -> int:
@@ -115,8 +113,8 @@ class ScoreReport:
 
         Wide tables are wrapped into blocks of at most ``width`` characters (header line + value line).
         """
-        cols = self.columns or [Column(k, k) for k in self.metrics]
-        headers = [c.header for c in cols]
+        cols = self.columns or [ColumnSpec(k, k, None) for k in self.metrics]
+        headers = [c.text_header for c in cols]
         values = [_fmt(self.scaled.get(c.key, math.nan)) for c in cols]
         widths = [max(len(h), len(v)) for h, v in zip(headers, values)]
         blocks, start = [], 0
@@ -135,9 +133,10 @@ class ScoreReport:
     def to_dict(self) -> dict:
         d = asdict(self)
         d.pop("columns")
-        d["n_scored"] = self.n_scored
-        d["scaling"] = {c.key: c.scale for c in self.columns}
         d.pop("per_item")
+        d = {"suite": d.pop("suite"), "metrics": d.pop("metrics"), "scaled": self.scaled, **d}
+        d["n_scored"] = self.n_scored
+        d["scaling"] = self.scaling
         return d
 
     def per_item_frame(self) -> pd.DataFrame:
