@@ -5,17 +5,25 @@ recomputes the dispersion over the whole window (O(window) per step), so a long 
 prediction) costs O(T²). dyadbench keeps running maxima/minima (O(1) per step). Both must give the same
 labels; the table prints the time of each and the ratio.
 
-    python benchmarks/bench_gaze_idt.py
+    python benchmarks/bench_gaze_idt.py        # writes benchmarks/results/gaze_idt.{json,md}
 """
 
 from __future__ import annotations
 
+import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from dyadbench.metrics.fixations import FIXATION, SACCADE, idt_labels
-from dyadbench.synth.gaze import make_gaze_sessions
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from dyadbench.metrics.fixations import FIXATION, SACCADE, idt_labels  # noqa: E402
+from dyadbench.synth.gaze import make_gaze_sessions  # noqa: E402
+from output import RESULTS, preformatted, write_result  # noqa: E402  (benchmarks/output.py)
+
+SEED = 0
 
 
 def naive_idt(gaze: np.ndarray, threshold: float = 3.5, min_frames: int = 3) -> np.ndarray:
@@ -49,19 +57,25 @@ def timed(fn, *args, repeat: int = 3) -> tuple[float, np.ndarray]:
 
 
 def main() -> None:
-    sessions = make_gaze_sessions("test", 16, seed=0, duration_s=60)
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, default=RESULTS / "gaze_idt", help="Result to write (.json and .md).")
+    args = parser.parse_args()
+    sessions = make_gaze_sessions("test", 16, seed=SEED, duration_s=60)
     synthetic = np.concatenate([c.participants[0].motion[:, 3:7] for c in sessions]).astype(np.float64)
     cases = {
         "synthetic sessions (16 x 60 s)": synthetic,
         "static prediction (20k frames)": np.zeros((20_000, 4)),
         "slow drift (20k frames, 0.001 deg/frame)": np.cumsum(np.full((20_000, 4), 1e-3), axis=0),
     }
-    print(f"{'case':44s} {'frames':>7s} {'dyadbench s':>12s} {'naive s':>9s} {'speed-up':>9s}  same labels")
+    lines = [f"{'case':44s} {'frames':>7s} {'dyadbench s':>12s} {'naive s':>9s} {'speed-up':>9s}  same labels"]
     for name, gaze in cases.items():
         fast_t, fast = timed(idt_labels, gaze)
         slow_t, slow = timed(naive_idt, gaze, repeat=1)
-        print(f"{name:44s} {len(gaze):7d} {fast_t:12.4f} {slow_t:9.4f} {slow_t / fast_t:8.1f}x  "
-              f"{bool(np.array_equal(fast, slow))}")
+        lines.append(f"{name:44s} {len(gaze):7d} {fast_t:12.4f} {slow_t:9.4f} {slow_t / fast_t:8.1f}x  "
+                     f"{bool(np.array_equal(fast, slow))}")
+    print("\n".join(lines))
+    text = preformatted("I-DT fixation labelling: running extrema vs naive re-computation", "\n".join(lines))
+    print("wrote", *write_result(args.out, text, seed=SEED))
 
 
 if __name__ == "__main__":

@@ -33,7 +33,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dyadbench import atomic  # noqa: E402
+from output import write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.datasets.dualtalk_files import load_prediction  # noqa: E402
 from dyadbench.metrics.dualtalk import SCALE, truncate_to_shortest  # noqa: E402
 from dyadbench.metrics.frechet import frechet_terms  # noqa: E402
@@ -138,7 +138,7 @@ def main(splits: str, pred: tuple[str, ...], out: Path) -> None:
         lines += render(split, len(agents), names, means)
         click.echo(f"{split}: {len(agents)} agents", err=True)
     text = "\n".join(lines)
-    atomic.write_text(out, text + "\n")
+    write_result(out, text, seed=DEFAULT_SEED)
     click.echo(text)
 
 

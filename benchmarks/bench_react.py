@@ -3,6 +3,8 @@
     python benchmarks/bench_react.py                 # --size small: N = 200 samples (a few minutes)
     python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750 (~6 min)
 
+Writes benchmarks/results/react_<size>.{json,md} (``_random`` appended with ``--predictions random``).
+
 Problem: R = 10 reactions of T = 750 frames per speaker sample. Ground truth: emotion features of the
 embedded synthetic corpus (:func:`dyadbench.synth.react_writer.emotion_features` of generated
 dialogues, tiled to N samples); neighbours: each row's nearest ``--density`` fraction of listener
@@ -33,6 +35,7 @@ import react_reference as ref  # noqa: E402
 from dyadbench.metrics import react  # noqa: E402
 from dyadbench.synth.corpus import make_clip  # noqa: E402
 from dyadbench.synth.react_writer import emotion_features, neighbour_matrix  # noqa: E402
+from output import RESULTS, Transcript, preformatted, write_result  # noqa: E402  (benchmarks/output.py)
 
 SIZES = {"small": 200, "val": 1676}
 R, T = 10, 750
@@ -95,14 +98,18 @@ def main() -> None:
     parser.add_argument("--frdist-rows", type=int, default=None,
                         help="time the fast FRDist on this many rows only and extrapolate by neighbour count "
                              "(for a full-size run on a shared machine); default: all rows")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="Result to write (.json and .md); default benchmarks/results/react_<size>[_random]")
     args = parser.parse_args()
+    say = (transcript := Transcript()).say
+
     n = args.n or SIZES[args.size]
     pred, listener, speaker, s = build_problem(n, args.density, args.predictions)
     warm_up()
     p, lst, sp, (indptr, indices) = react.check_inputs(pred, listener, speaker, s)
     nnz = int(s.sum())
-    print(f"N={n} R={R} T={T} neighbours/row mean {nnz / n:.1f} ({args.density:.1%}), predictions={args.predictions},"
-          f" cpus={os.cpu_count()}, numba threads={react_threads()}")
+    say(f"N={n} R={R} T={T} neighbours/row mean {nnz / n:.1f} ({args.density:.1%}), predictions={args.predictions},"
+        f" cpus={os.cpu_count()}, numba threads={react_threads()}")
 
     fast_full, fast_cpu = {}, {}
     runs = [("FRCorr", react.fr_corr, (p, lst, indptr, indices), {}),
@@ -157,24 +164,27 @@ def main() -> None:
     compare("FRSyn_all", react.fr_syn(p[rows], sp[rows], all_reactions=True), value, True)
     scale["FRSyn_all"] = n / len(rows)
 
-    print(f"\nloops timed on {len(rows)} speaker rows ({sub_nnz} neighbours; FRDvs on {m} samples), "
+    say(f"\nloops timed on {len(rows)} speaker rows ({sub_nnz} neighbours; FRDvs on {m} samples), "
           "extrapolated to the full problem\n")
-    print("fast wall = elapsed seconds; fast cpu = process CPU seconds (all threads); loops est. = CPU seconds of\n"
-          "the single-threaded loops (= their time on an idle core), extrapolated\n")
-    print(f"{'metric':<22}{'fast wall':>10}{'fast cpu':>10}{'loops est.':>12}{'wall x':>9}{'cpu x':>8}"
-          "  identical on subset")
+    say("fast wall = elapsed seconds; fast cpu = process CPU seconds (all threads); loops est. = CPU seconds of\n"
+        "the single-threaded loops (= their time on an idle core), extrapolated\n")
+    say(f"{'metric':<22}{'fast wall':>10}{'fast cpu':>10}{'loops est.':>12}{'wall x':>9}{'cpu x':>8}"
+        "  identical on subset")
     total = np.zeros(3)
     for name, seconds in fast_full.items():
         key = name.split(" ")[0]
         est = loops[key] * scale[key]
         if name.rstrip(" *") == key:
             total += (seconds, fast_cpu[name], est)
-        print(f"{name:<22}{seconds:>10.2f}{fast_cpu[name]:>10.2f}{est:>12.1f}{est / seconds:>8.1f}x"
-              f"{est / fast_cpu[name]:>7.1f}x  {same[key]}")
+        say(f"{name:<22}{seconds:>10.2f}{fast_cpu[name]:>10.2f}{est:>12.1f}{est / seconds:>8.1f}x"
+            f"{est / fast_cpu[name]:>7.1f}x  {same[key]}")
     if dist_rows.stop < n:
-        print(f"* fast FRDist timed on rows 0..{dist_rows.stop - 1} and extrapolated by neighbour count (x{dist_scale:.1f})")
-    print(f"{'whole suite':<22}{total[0]:>10.2f}{total[1]:>10.2f}{total[2]:>12.1f}{total[2] / total[0]:>8.1f}x"
-          f"{total[2] / total[1]:>7.1f}x")
+        say(f"* fast FRDist timed on rows 0..{dist_rows.stop - 1} and extrapolated by neighbour count (x{dist_scale:.1f})")
+    say(f"{'whole suite':<22}{total[0]:>10.2f}{total[1]:>10.2f}{total[2]:>12.1f}{total[2] / total[0]:>8.1f}x"
+        f"{total[2] / total[1]:>7.1f}x")
+    out = args.out or RESULTS / f"react_{args.size}{'_random' if args.predictions == 'random' else ''}"
+    text = preformatted("REACT suite: dyadbench vs the straightforward loops of the specification", transcript.text())
+    print("wrote", *write_result(out, text, seed=0))
 
 
 def warm_up() -> None:

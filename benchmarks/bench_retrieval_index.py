@@ -9,20 +9,26 @@ first ``--test`` test dialogues. Three ways to find the nearest train turn:
 - ``brute-full``: a numpy scan over the full standardised, block-weighted features (the naive design
   without the projection); the table reports how often its answer equals the projected one.
 
-    python benchmarks/bench_retrieval_index.py [--train 128] [--test 40]
+    python benchmarks/bench_retrieval_index.py [--train 128] [--test 40]   # writes benchmarks/results/retrieval_index.*
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from baselines.retrieval import build_index, partner_features, split_turns, turn_speech
-from dyadbench.datasets.base import InMemorySource
-from dyadbench.synth.corpus import make_clips
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from baselines.retrieval import build_index, partner_features, split_turns, turn_speech  # noqa: E402
+from dyadbench.datasets.base import InMemorySource  # noqa: E402
+from dyadbench.datasets.synthetic import DEFAULT_SEED  # noqa: E402
+from dyadbench.synth.corpus import make_clips  # noqa: E402
+from output import RESULTS, preformatted, write_result  # noqa: E402  (benchmarks/output.py)
 
 
 def _queries(clips, frames: int, samples: int) -> np.ndarray:
@@ -45,6 +51,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--train", type=int, default=128)
     parser.add_argument("--test", type=int, default=40)
+    parser.add_argument("--out", type=Path, default=RESULTS / "retrieval_index",
+                        help="Result to write (.json and .md).")
     args = parser.parse_args()
     train = InMemorySource(make_clips("train", args.train), "synthetic", "train")
     index = build_index(train, 1.0)
@@ -70,14 +78,17 @@ def main() -> None:
     timings["brute-full"] = time.perf_counter() - start
 
     n = len(projected)
-    print(f"index: {index['points'].shape[0]} train turns, {index['axes'].shape[0]} PCA dims of "
-          f"{z.shape[1]} features; {n} query turns; tree build {build_s * 1e3:.1f} ms")
-    print(f"{'method':<12} {'total s':>9} {'us/query':>10} {'vs kdtree':>10} {'same turn as kdtree':>20}")
+    lines = [f"index: {index['points'].shape[0]} train turns, {index['axes'].shape[0]} PCA dims of "
+             f"{z.shape[1]} features; {n} query turns; tree build {build_s * 1e3:.1f} ms",
+             f"{'method':<12} {'total s':>9} {'us/query':>10} {'vs kdtree':>10} {'same turn as kdtree':>20}"]
     same = {"kdtree-pca": 1.0, "brute-pca": float(np.mean(brute_pca == kd)),
             "brute-full": float(np.mean(brute_full == kd))}
     for name, seconds in timings.items():
-        print(f"{name:<12} {seconds:>9.3f} {seconds / n * 1e6:>10.1f} {seconds / timings['kdtree-pca']:>9.1f}x "
-              f"{same[name]:>19.1%}")
+        lines.append(f"{name:<12} {seconds:>9.3f} {seconds / n * 1e6:>10.1f} {seconds / timings['kdtree-pca']:>9.1f}x "
+                     f"{same[name]:>19.1%}")
+    print("\n".join(lines))
+    text = preformatted("nn-retrieval queries: k-d tree in PCA space vs brute-force scans", "\n".join(lines))
+    print("wrote", *write_result(args.out, text, seed=DEFAULT_SEED))
 
 
 if __name__ == "__main__":

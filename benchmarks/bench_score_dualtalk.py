@@ -16,6 +16,8 @@ reference (and between jobs=1 and jobs=2) is printed.
     python benchmarks/bench_score_dualtalk.py                        # 1066 agents, reference on 100
     python benchmarks/bench_score_dualtalk.py --agents 200 --reference-agents 40   # quick look
 
+Both write benchmarks/results/score_dualtalk.{json,md} (``--out`` elsewhere).
+
 The reference runs on the first ``--reference-agents`` agents only (it can be very slow with default
 threads on a busy machine); its clips/s is compared with dyadbench's clips/s on the full set.
 """
@@ -35,6 +37,7 @@ from sklearn.cluster import KMeans
 from threadpoolctl import threadpool_limits
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from output import RESULTS, Transcript, write_result  # noqa: E402  (benchmarks/output.py)
 from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 from dyadbench.metrics.dualtalk import KEYS  # noqa: E402
@@ -148,43 +151,48 @@ def _max_abs_diff(rows_a: list[dict], rows_b: list[dict]) -> dict[str, float]:
 @click.option("--reference-agents", default=100, show_default=True,
               help="Agents scored by the straightforward reference (its first N; it is slow).")
 @click.option("--seed", default=0, show_default=True, help="Seed of the generated set and of the scorer.")
-def main(agents: int, reference_agents: int, seed: int) -> None:
+@click.option("--out", default=RESULTS / "score_dualtalk", show_default=True, type=click.Path(path_type=Path),
+              help="Result to write (.json and .md).")
+def main(agents: int, reference_agents: int, seed: int, out: Path) -> None:
     """Print clips/s of the reference and of dyadbench --jobs 1/2, speed-ups and metric differences."""
+    say = (transcript := Transcript()).say
+
     items = make_set(agents, seed)
     ref_items = items[:reference_agents]
     frames = np.mean([it.pred.shape[0] for it in items])
-    print(f"# DualTalk-suite scoring: {agents} agents, mean {frames:.0f} frames; {os.cpu_count()} CPUs; "
-          f"load average before: {os.getloadavg()[0]:.2f}; python {platform.python_version()}")
+    say(f"# DualTalk-suite scoring: {agents} agents, mean {frames:.0f} frames; {os.cpu_count()} CPUs; "
+        f"load average before: {os.getloadavg()[0]:.2f}; python {platform.python_version()}")
 
     ref_rows, t_ref, cpu_ref = timed(lambda: reference_score(ref_items, seed))
     with threadpool_limits(limits=1):
         ref_rows_1, t_ref_1, cpu_ref_1 = timed(lambda: reference_score(ref_items, seed))
     report_1, t_jobs1, cpu_jobs1 = timed(lambda: score_arrays(items, jobs=1, seed=seed))
     report_2, t_jobs2, cpu_jobs2 = timed(lambda: score_arrays(items, jobs=2, seed=seed))
-    print(f"# load average after: {os.getloadavg()[0]:.2f}")
+    say(f"# load average after: {os.getloadavg()[0]:.2f}")
 
     base = len(ref_items) / t_ref
     rows = [("reference, default threads", len(ref_items), t_ref, cpu_ref),
             ("reference, 1 BLAS/OpenMP thread", len(ref_items), t_ref_1, cpu_ref_1),
             ("dyadbench score_arrays --jobs 1", agents, t_jobs1, cpu_jobs1),
             ("dyadbench score_arrays --jobs 2", agents, t_jobs2, cpu_jobs2)]
-    print("\n| implementation | agents | seconds | clips/s | vs reference | CPU ms/clip |\n"
-          "|---|---:|---:|---:|---:|---:|")
+    say("\n| implementation | agents | seconds | clips/s | vs reference | CPU ms/clip |\n"
+        "|---|---:|---:|---:|---:|---:|")
     for name, n, seconds, cpu in rows:
-        print(f"| {name} | {n} | {seconds:.1f} | {n / seconds:.1f} | {n / seconds / base:.2f}x | "
-              f"{1e3 * cpu / n:.0f} |")
-    print(f"\nfull set ({agents} agents) with --jobs 2: {t_jobs2:.1f} s; --jobs 2 / --jobs 1 = "
-          f"{t_jobs1 / t_jobs2:.2f}x")
+        say(f"| {name} | {n} | {seconds:.1f} | {n / seconds:.1f} | {n / seconds / base:.2f}x | "
+            f"{1e3 * cpu / n:.0f} |")
+    say(f"\nfull set ({agents} agents) with --jobs 2: {t_jobs2:.1f} s; --jobs 2 / --jobs 1 = "
+        f"{t_jobs1 / t_jobs2:.2f}x")
 
     product = report_1.per_item[:len(ref_items)]
     vs_ref = _max_abs_diff(product, ref_rows)
     vs_ref_1 = _max_abs_diff(product, ref_rows_1)
     vs_jobs = _max_abs_diff(report_1.per_item, report_2.per_item)
-    print("\n| metric | max abs diff vs reference | vs reference 1-thread | jobs 1 vs jobs 2 |\n|---|---:|---:|---:|")
+    say("\n| metric | max abs diff vs reference | vs reference 1-thread | jobs 1 vs jobs 2 |\n|---|---:|---:|---:|")
     for key in KEYS:
-        print(f"| {key} | {vs_ref[key]:.3g} | {vs_ref_1[key]:.3g} | {vs_jobs[key]:.3g} |")
+        say(f"| {key} | {vs_ref[key]:.3g} | {vs_ref_1[key]:.3g} | {vs_jobs[key]:.3g} |")
     worst = max(max(vs_ref.values()), max(vs_ref_1.values()), max(vs_jobs.values()))
-    print(f"\nlargest difference of any metric: {worst:.3g}")
+    say(f"\nlargest difference of any metric: {worst:.3g}")
+    print("wrote", *write_result(out, transcript.text(), seed=seed))
 
 
 if __name__ == "__main__":

@@ -37,7 +37,7 @@ from sklearn.cluster import KMeans
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dyadbench import atomic  # noqa: E402
+from output import write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.registry import DATASETS  # noqa: E402
 from models.sfms.config import to_dict, tokenizer_preset  # noqa: E402
 from models.sfms.data import clip_motions, motion_stats  # noqa: E402
@@ -241,7 +241,7 @@ def main(ks, steps, batch, lr, samples, radius, levels, clips, test_windows, see
     ]
     text = "\n".join(lines) + "\n"
     click.echo(text)
-    atomic.write_text(out, text)
+    write_result(out, text, seed=seed)
 
 
 if __name__ == "__main__":

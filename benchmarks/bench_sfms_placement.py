@@ -27,7 +27,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_sfms_keyframes import load_corpus  # noqa: E402
-from dyadbench import atomic  # noqa: E402
+from output import write_result  # noqa: E402  (benchmarks/output.py)
 from models.sfms.bundle import load_tokenizer  # noqa: E402
 from models.sfms.placement import interpolation_mse, optimal_placement_mse  # noqa: E402
 from models.sfms.registry import SHIPPED_WEIGHTS  # noqa: E402
@@ -109,7 +109,7 @@ def main(ks, oracle_windows, test_windows, clips, tokenizer_path, seed, out) -> 
     ]
     text = "\n".join(lines) + "\n"
     click.echo(text)
-    atomic.write_text(out, text)
+    write_result(out, text, seed=seed)
 
 
 if __name__ == "__main__":

@@ -22,7 +22,7 @@ import click
 import numpy as np
 import torch
 
-from dyadbench import atomic
+from output import write_result  # benchmarks/output.py
 from dyadbench.datasets.gaze import SYNTHETIC_SEED
 from dyadbench.registry import DATASETS
 from dyadbench.synth.gaze import DEFAULT_SESSIONS, SPEAKERS, make_gaze_session
@@ -99,7 +99,7 @@ def main(encoders: tuple[Path, ...], out: Path) -> None:
         lines.append(f"| {name} | " + " | ".join(f"{a:.3f} / {ch:.3f}" for a, ch in res.values()) + " |")
     text = "\n".join(lines) + "\n"
     click.echo(text)
-    atomic.write_text(out, text)
+    write_result(out, text, seed=SYNTHETIC_SEED)
 
 
 if __name__ == "__main__":

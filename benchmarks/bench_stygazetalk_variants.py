@@ -31,7 +31,7 @@ import click
 import numpy as np
 import torch
 
-from dyadbench import atomic
+from output import write_result  # benchmarks/output.py
 from dyadbench.datasets.gaze import SYNTHETIC_SEED
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
@@ -332,7 +332,7 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
                   "excluding data loading): " + ", ".join(f"{k} {v:.0f}" for k, v in seconds.items())]
     text = "\n".join(lines) + "\n"
     click.echo(text)
-    atomic.write_text(out, text)
+    write_result(out, text, seed=0)
     click.echo(f"wrote {out}")
 
 

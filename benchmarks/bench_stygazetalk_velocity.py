@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_stygazetalk_variants import (  # noqa: E402
     ABLATION, ABLATION_LABELS, DATASET, _ablation_cells, _ablation_key, _arrays, _direction, _paired, _stream,
     train_ablation_arm)
-from dyadbench import atomic  # noqa: E402
+from output import write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.protocol.config import ProtocolConfig  # noqa: E402
 from dyadbench.protocol.interface import ModelOptions  # noqa: E402
 from dyadbench.registry import DATASETS  # noqa: E402
@@ -100,7 +100,7 @@ def main(seeds: int, work: Path, reuse: bool, jobs: int, context: int, out: Path
                        f"{_direction(runs['se64'], runs['se64-vel'], gt['fix_ratio'])} |")
     text = "\n".join(lines + summary) + "\n"
     click.echo(text)
-    atomic.write_text(out, text)
+    write_result(out, text, seed=seed_list)
 
 
 if __name__ == "__main__":

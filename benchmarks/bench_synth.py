@@ -11,6 +11,8 @@ Rows:
     python benchmarks/bench_synth.py                 # 533 dialogues
     python benchmarks/bench_synth.py --clips 100     # quick look
 
+Both write benchmarks/results/synth.{json,md} (``--out`` elsewhere).
+
 Goal: the full test split in under 60 s on a 2-core machine. Wall and CPU seconds are both printed: on
 a machine shared with other work the wall time stretches, the CPU time does not.
 """
@@ -29,6 +31,7 @@ import click
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from output import RESULTS, Transcript, preformatted, write_result  # noqa: E402  (benchmarks/output.py)
 from timing import timed  # noqa: E402  (benchmarks/timing.py)
 
 from dyadbench.synth import speech  # noqa: E402
@@ -69,10 +72,13 @@ def additive_synthesise(r, style, env, f0, vowel, burst, phrases, n_samples, sam
 @click.option("--clips", default=533, show_default=True, help="Dialogues in the split (DualTalk test: 533).")
 @click.option("--reference-clips", default=20, show_default=True, help="Dialogues the reference oscillator runs on.")
 @click.option("--seed", default=0, show_default=True, help="Generator seed.")
-def main(clips: int, reference_clips: int, seed: int) -> None:
+@click.option("--out", default=RESULTS / "synth", show_default=True, type=click.Path(path_type=Path),
+              help="Result to write (.json and .md).")
+def main(clips: int, reference_clips: int, seed: int, out: Path) -> None:
     os.environ.setdefault("OMP_NUM_THREADS", "1")
-    print(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; load average "
-          f"{os.getloadavg()[0]:.1f}")
+    say = (transcript := Transcript()).say
+    say(f"machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores; load average "
+        f"{os.getloadavg()[0]:.1f}")
     memory, *t_memory = timed(lambda: make_clips("test", clips, seed))
     seconds = np.array([c.duration_s for c in memory])
     del memory
@@ -96,17 +102,19 @@ def main(clips: int, reference_clips: int, seed: int) -> None:
     rows += [(f"in memory, wavetable (first {reference_clips})", reference_clips, t_fast, c_fast),
              (f"in memory, additive sines (first {reference_clips}, reference)", reference_clips, t_slow, c_slow)]
 
-    print(f"\nsplit: {clips} dialogues, mean {seconds.mean():.1f} s (min {seconds.min():.1f}, max "
-          f"{seconds.max():.1f}), {seconds.sum() / 3600:.2f} h; on disk {size / 1e9:.2f} GB")
-    print(f"{'what':<58} {'clips':>6} {'wall s':>8} {'CPU s':>8} {'clips/s':>8}")
+    say(f"\nsplit: {clips} dialogues, mean {seconds.mean():.1f} s (min {seconds.min():.1f}, max "
+        f"{seconds.max():.1f}), {seconds.sum() / 3600:.2f} h; on disk {size / 1e9:.2f} GB")
+    say(f"{'what':<58} {'clips':>6} {'wall s':>8} {'CPU s':>8} {'clips/s':>8}")
     for name, n, wall, cpu in rows:
-        print(f"{name:<58} {n:>6} {wall:>8.2f} {cpu:>8.2f} {n / wall:>8.1f}")
-    print(f"\nwavetable vs additive sines: {c_slow / c_fast:.1f}x less CPU time; max abs audio difference "
-          f"{diff:.2e} (full scale 1); motion identical: {same_motion}")
+        say(f"{name:<58} {n:>6} {wall:>8.2f} {cpu:>8.2f} {n / wall:>8.1f}")
+    say(f"\nwavetable vs additive sines: {c_slow / c_fast:.1f}x less CPU time; max abs audio difference "
+        f"{diff:.2e} (full scale 1); motion identical: {same_motion}")
     best = min(wall for _, _, wall, _ in rows[1:3])
-    print(f"goal: DualTalk-sized test split on disk in < 60 s wall -> {best:.1f} s "
-          f"({'met' if best < 60 and clips >= 533 else 'not met' if clips >= 533 else 'run with --clips 533'}); "
+    say(f"goal: DualTalk-sized test split on disk in < 60 s wall -> {best:.1f} s "
+        f"({'met' if best < 60 and clips >= 533 else 'not met' if clips >= 533 else 'run with --clips 533'}); "
           f"CPU s are what an idle machine would need with --jobs 1 (a busy machine stretches wall time)")
+    text = preformatted("Generating a DualTalk-sized synthetic test split", transcript.text())
+    print("wrote", *write_result(out, text, seed=seed))
 
 
 if __name__ == "__main__":

@@ -23,7 +23,7 @@ import click
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from dyadbench import atomic  # noqa: E402
+from output import write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.cli.eval import open_splits, run_one  # noqa: E402
 from dyadbench.protocol.config import ProtocolConfig  # noqa: E402
 
@@ -97,7 +97,7 @@ def main(scales: str, splits: str, context: int, clips: int, seed: int, jobs: in
                        err=True)
             rows.append(row)
     text = render(rows, split_list, context, clips, seed)
-    atomic.write_text(out, text + "\n")
+    write_result(out, text, seed=seed)
     click.echo(text)
     click.echo(f"wrote {out}", err=True)
 

@@ -8,6 +8,8 @@ Cached and uncached outputs of the same model and seed are also compared (max |d
 
     python benchmarks/bench_timar_latency.py                 # shipped tiny checkpoints, CPU
     python benchmarks/bench_timar_latency.py --config large --device cuda   # random weights, GPU
+
+Writes benchmarks/results/timar_latency.{json,md} (``--out`` elsewhere).
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from dyadbench.training.checkpoint import save_checkpoint  # noqa: E402
 from models.timar.config import preset  # noqa: E402
 from models.timar.model import TimarModel  # noqa: E402
 from models.timar.registry import build_timar, build_timar_stream  # noqa: E402
+from output import RESULTS, Transcript, preformatted, write_result  # noqa: E402  (benchmarks/output.py)
 
 BUILDERS = {"timar": (build_timar, "faithful"), "timar-stream": (build_timar_stream, "stream")}
 
@@ -57,6 +60,7 @@ def main() -> None:
     parser.add_argument("--contexts", default="0,3,7", help="Comma-separated history lengths n.")
     parser.add_argument("--device", default="cpu")
     parser.add_argument("--threads", type=int, default=1, help="torch CPU threads.")
+    parser.add_argument("--out", type=Path, default=RESULTS / "timar_latency", help="Result to write (.json and .md).")
     args = parser.parse_args()
     torch.set_num_threads(args.threads)
     clips = make_clips("test", args.clips, duration_s=args.seconds)
@@ -79,21 +83,24 @@ def main() -> None:
                 rows[name, cache, n] = (statistics.mean(lat), statistics.median(lat), len(lat))
                 outputs[name, cache, n] = np.concatenate(motion)
 
+    say = (transcript := Transcript()).say
     cfg_name = args.config or "tiny (shipped)"
-    print(f"TIMAR per-turn latency, config {cfg_name}, device {args.device}, {args.threads} thread(s), "
-          f"{len(clips)} clips x {args.seconds:.0f} s, both directions; turn = 1 s")
-    print(f"{'model':<13} {'cache':<5} {'n':>2} {'mean ms':>9} {'median ms':>10} {'RTF':>7} "
-          f"{'speed-up':>9} {'turns':>6} {'max|cached-uncached|':>21}")
+    say(f"TIMAR per-turn latency, config {cfg_name}, device {args.device}, {args.threads} thread(s), "
+        f"{len(clips)} clips x {args.seconds:.0f} s, both directions; turn = 1 s")
+    say(f"{'model':<13} {'cache':<5} {'n':>2} {'mean ms':>9} {'median ms':>10} {'RTF':>7} "
+        f"{'speed-up':>9} {'turns':>6} {'max|cached-uncached|':>21}")
     for (name, cache, n), (mean, median, turns) in rows.items():
         reference = rows["timar", False, n][1]
         diff = np.abs(outputs[name, True, n] - outputs[name, False, n]).max()
-        print(f"{name:<13} {'yes' if cache else 'no':<5} {n:>2} {mean * 1e3:9.2f} {median * 1e3:10.2f} "
-              f"{mean / 1.0:7.4f} {reference / median:8.2f}x {turns:6d} {diff:21.2e}")
-    print("RTF = mean latency / 1-s turn; speed-up = median latency of timar without cache / this row's median")
+        say(f"{name:<13} {'yes' if cache else 'no':<5} {n:>2} {mean * 1e3:9.2f} {median * 1e3:10.2f} "
+            f"{mean / 1.0:7.4f} {reference / median:8.2f}x {turns:6d} {diff:21.2e}")
+    say("RTF = mean latency / 1-s turn; speed-up = median latency of timar without cache / this row's median")
     for n in contexts:
         stream = rows["timar-stream", True, n]
-        print(f"n={n}: timar-stream (cache) is {rows['timar', True, n][1] / stream[1]:.2f}x faster per turn (median) "
-              f"than timar (cache) and {rows['timar', False, n][1] / stream[1]:.2f}x than timar re-encoding")
+        say(f"n={n}: timar-stream (cache) is {rows['timar', True, n][1] / stream[1]:.2f}x faster per turn (median) "
+            f"than timar (cache) and {rows['timar', False, n][1] / stream[1]:.2f}x than timar re-encoding")
+    text = preformatted("TIMAR per-turn latency through the streaming protocol", transcript.text())
+    print("wrote", *write_result(args.out, text, seed=0))
 
 
 if __name__ == "__main__":

@@ -7,7 +7,9 @@ turn length, context n, tail, history-agent policy, guidance scale, seed), the m
 metrics raw and publication-scaled and the scale factors, per-clip raw metrics, coverage and exclusions,
 timing (wall clock, mean per-turn latency), the environment (dyadbench, Python, NumPy, torch versions,
 git commit) and the configuration the run was requested with
-(:mod:`dyadbench.protocol.run_configuration`, what ``sweep`` compares before re-using a result). Fields
+(:mod:`dyadbench.protocol.run_configuration`, what ``sweep`` compares before re-using a result), and each
+column's standard error and bootstrap CI over dialogues (:mod:`dyadbench.uncertainty`; computed when
+scoring, so kept without per-clip values) with the method that gave them. Fields
 added later have defaults, so older files load. :func:`load_result` reads one back and rejects
 malformed files with a message naming the file and the field; :func:`results_frame` loads many into a
 long :class:`pandas.DataFrame`, the only input of the leaderboards.
@@ -94,6 +96,8 @@ class EvalResult:
     environment: dict = field(default_factory=dict)
     created_utc: str = ""
     configuration: dict | None = None  # dyadbench.protocol.run_configuration.requested_configuration
+    uncertainty: dict = field(default_factory=dict)  # metric -> se, ci_low, ci_high (dyadbench.uncertainty)
+    uncertainty_method: dict = field(default_factory=dict)  # method, resamples, level, seed, clusters
     schema: str = SCHEMA
 
     def to_dict(self) -> dict:
@@ -135,7 +139,9 @@ class EvalResult:
                    excluded=d.get("excluded") or [], notes=d.get("notes") or [],
                    predictions=d.get("predictions"), environment=d.get("environment") or {},
                    created_utc=d.get("created_utc", ""),
-                   configuration=_optional_object(d, "configuration", source), **parts)
+                   configuration=_optional_object(d, "configuration", source),
+                   uncertainty=_optional_object(d, "uncertainty", source) or {},
+                   uncertainty_method=_optional_object(d, "uncertainty_method", source) or {}, **parts)
 
     def per_clip_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.per_clip)

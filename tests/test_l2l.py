@@ -11,8 +11,6 @@ from baselines.retrieval import build_nn_retrieval
 from dyadbench.cli import cli
 from dyadbench.datasets import l2l as layout
 from dyadbench.errors import InputError
-from dyadbench.metrics import dualtalk
-from dyadbench.metrics.entropy import kmeans_entropy
 from dyadbench.metrics.l2l import L2LParams, keys, split_metrics
 from dyadbench.motion import l2l_to_flame56
 from dyadbench.protocol.config import ProtocolConfig
@@ -121,23 +119,56 @@ def test_ground_truth_as_prediction():
     assert len(per_sequence) == 6
 
 
-def test_suite_matches_its_definition():
-    gts, speakers = _sequences(1)
-    rng = np.random.default_rng(2)
-    preds = [g + 0.3 * rng.normal(size=g.shape) for g in gts]
-    params = L2LParams(si_k={"exp": 5, "pose": 4, "jaw": 3})
-    metrics, _ = split_metrics(preds, gts, speakers, params)
-    exp = slice(0, 50)
-    pooled = [np.concatenate([x[:, exp] for x in xs]) for xs in (preds, gts, speakers)]
-    assert metrics["l2_exp"] == pytest.approx(np.mean((pooled[0] - pooled[1]) ** 2), rel=1e-12)
-    assert metrics["fd_exp"] == pytest.approx(np.mean([dualtalk.fd(p[:, exp], g[:, exp])
-                                                       for p, g in zip(preds, gts)]), rel=1e-12)
-    assert metrics["pfd_exp"] == pytest.approx(np.mean([dualtalk.pfd(p[:, exp], g[:, exp], a[:, exp])
-                                                        for p, g, a in zip(preds, gts, speakers)]), rel=1e-12)
-    assert metrics["si_exp"] == kmeans_entropy(fit_on=pooled[1], label=pooled[0], k=5)
-    assert metrics["var_exp"] == pytest.approx(np.mean(np.var(pooled[0], axis=0)), rel=1e-12)
-    rho = lambda x, y: np.corrcoef(x.ravel(), y.ravel())[0, 1]  # noqa: E731
-    assert metrics["rpcc_exp"] == pytest.approx(abs(rho(pooled[1], pooled[2]) - rho(pooled[0], pooled[2])), rel=1e-12)
+CENTRES = 10.0 * (np.arange(256) % 4)[:, None] * np.ones((1, 56))
+
+
+def _clustered(n=4, seed=1):
+    """``n`` sequences of 256 frames near four centres 10 j (1, ..., 1), j = frame mod 4, unit noise with
+    mean 0 in every sequence and dim (so every sequence has the same mean)."""
+    noise = [x - x.mean(axis=0) for x in np.random.default_rng(seed).normal(size=(n, *CENTRES.shape))]
+    return [CENTRES + x for x in noise]
+
+
+DIMS = {"exp": 50, "pose": 3, "jaw": 3}
+
+
+def test_suite_values_by_hand_for_shifted_predictions():
+    # sequence i shifted by c_i in every dim: squared error c_i^2 per value, so L2 = mean c_i^2 = 0.075
+    # (equal lengths); equal covariances leave FD = P-FD = dims * c_i^2 per sequence, averaged: dims * 0.075;
+    # equal sequence means: the pooled variance gains the shifts' variance 0.075 - 0.25^2 = 0.0125; shifts keep
+    # every frame's cluster, so SI = SI-GT = -log2(1/4 + 1e-6) (four equally filled clusters, k = 4)
+    gts, speakers = _clustered(), _clustered(seed=2)
+    preds = [g + c for g, c in zip(gts, (0.1, 0.2, 0.3, 0.4))]
+    params = L2LParams(si_k={"exp": 4, "pose": 4, "jaw": 4})
+    metrics, per_sequence = split_metrics(preds, gts, speakers, params)
+    four_clusters = -np.log2(0.25 + 1e-6)
+    for c, dims in DIMS.items():
+        assert metrics[f"l2_{c}"] == pytest.approx(0.075, rel=1e-9)
+        assert metrics[f"fd_{c}"] == pytest.approx(dims * 0.075, rel=1e-6)
+        assert metrics[f"pfd_{c}"] == pytest.approx(dims * 0.075, rel=1e-6)
+        assert [s[f"fd_{c}"] for s in per_sequence] == pytest.approx([dims * x * x for x in (0.1, 0.2, 0.3, 0.4)],
+                                                                     rel=1e-6)
+        assert metrics[f"var_{c}"] - metrics[f"var_gt_{c}"] == pytest.approx(0.0125, rel=1e-9)
+        assert metrics[f"si_{c}"] == pytest.approx(four_clusters, rel=1e-12)
+        assert metrics[f"si_gt_{c}"] == pytest.approx(four_clusters, rel=1e-12)
+
+
+def test_suite_values_by_hand_for_centred_and_mirrored_predictions():
+    # the prediction keeps the noise and drops the centres: one occupied cluster, SI = -log2(1 + 1e-6); the
+    # ground truth's variance per dim adds the centres' 0, 10, 20, 30 equally weighted: 125
+    gts, speakers = _clustered(), _clustered(seed=2)
+    centred = [g - CENTRES for g in gts]
+    metrics, _ = split_metrics(centred, gts, speakers, L2LParams(si_k={"exp": 4, "pose": 4, "jaw": 4}))
+    for c in DIMS:
+        assert metrics[f"si_{c}"] == pytest.approx(-np.log2(1 + 1e-6), rel=1e-12)
+        assert metrics[f"var_gt_{c}"] - metrics[f"var_{c}"] == pytest.approx(125.0, rel=0.01)
+    # p = 1 - 2 g: four times the variance, and the correlation with the speaker flips: rPCC = |r - (-r)| = 2 r,
+    # r = corr(g, a) of the flattened pooled frames (numpy's corrcoef)
+    metrics, _ = split_metrics([1 - 2 * g for g in gts], gts, speakers)
+    for c, cols in (("exp", slice(0, 50)), ("jaw", slice(50, 53)), ("pose", slice(53, 56))):
+        r = np.corrcoef(np.concatenate(gts)[:, cols].ravel(), np.concatenate(speakers)[:, cols].ravel())[0, 1]
+        assert r > 0.9 and metrics[f"rpcc_{c}"] == pytest.approx(2 * r, rel=1e-9)
+        assert metrics[f"var_{c}"] == pytest.approx(4 * metrics[f"var_gt_{c}"], rel=1e-12)
 
 
 def test_score_arrays_excludes_nan_and_needs_the_speaker():

@@ -8,6 +8,8 @@ import click
 
 from dyadbench.leaderboard import long_table, table_texts, write_tables
 from dyadbench.outputs import check_folder
+from dyadbench.results import result_files
+from dyadbench.staleness import STALE, UNVERIFIED, Checker, check_files
 
 #: Published rows shipped with dyadbench (transcribed from the TIMAR paper, Tables 1 and 2).
 PAPER_ROWS = Path(__file__).resolve().parents[2] / "leaderboards" / "paper_timar.csv"
@@ -35,6 +37,9 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
       OUT/<suite>_wide.tex    with --latex
     Numbers come only from result files written by `dyadbench eval` / `dyadbench sweep` and from the
     transcribed published rows.
+    Each result file's provenance is compared with the current code and data (dyadbench.staleness):
+    stale rows (a model version, weights digest or data digest that differs) are warned about on
+    stderr, with a count of the rows that could not be fully compared; the tables are the same either way.
     A RESULTS folder without result files is an error (nothing is written).
     """
     check_folder(out, f"--out {out}")
@@ -48,3 +53,18 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
         click.echo(f"wrote {path}")
     for path in removed:
         click.echo(f"removed {path} (not part of this build)")
+    warn_stale(sources)
+
+
+def warn_stale(sources: list[Path]) -> None:
+    """On stderr: one warning per stale result file (file, model, what differs) and the number of
+    unverified ones. Never generates data: a run needing an embedded split not in the cache is unverified."""
+    verdicts = check_files(result_files(sources), Checker(generate=False))
+    for verdict in verdicts:
+        if verdict.status == STALE:
+            click.echo(f"warning: stale row {verdict.line()}; `dyadbench sweep --stale --out <its results "
+                       f"folder>` re-runs it", err=True)
+    unverified = sum(v.status == UNVERIFIED for v in verdicts)
+    if unverified:
+        click.echo(f"{unverified} of {len(verdicts)} result rows unverified: their provenance could not be "
+                   f"fully compared here (e.g. written before results recorded their data digest)", err=True)

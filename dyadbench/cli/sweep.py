@@ -9,6 +9,10 @@ version and weights digest, train split) equals the requested one, so adding a m
 re-runs the others; otherwise it is re-run and the reason printed. The model is built (baselines fitted,
 from their cache) before that comparison, and nothing is streamed for a skipped run.
 ``dyadbench leaderboard OUT`` then rebuilds the tables from every file.
+
+``sweep --stale --out OUT`` re-runs exactly the result files under OUT whose provenance no longer matches
+the current code and data (:mod:`dyadbench.staleness`), each with the settings it records, and writes
+the new result over the same file (atomically).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from pathlib import Path
 from typing import Callable, Iterator
 
 import click
+from click.core import ParameterSource
 
 from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
                                 resolve_dataset, run_one, save_result, summary)
@@ -29,7 +34,13 @@ from dyadbench.outputs import check_cache, check_folder, owned_folder
 from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.protocol.run_configuration import differences
 from dyadbench.registry import MODELS
-from dyadbench.results import EvalResult, load_result
+from dyadbench.results import EvalResult, load_result, result_files
+from dyadbench.staleness import STALE, Checker, RecordedRun, open_split, recorded_run
+
+#: Options describing which runs to make; ``--stale`` takes them from each result file and refuses them.
+RUN_OPTIONS = ("models", "splits", "context_list", "turn_seconds", "tail", "history_agent", "seed", "cfg_scale",
+               "weights", "data", "dataset", "train", "allow_train_overlap", "clips", "keep_predictions",
+               "per_clip", "force")
 
 
 def result_path(out: Path, dataset: str, split: str, context: int, model: str, variant: str = "") -> Path:
@@ -81,6 +92,40 @@ def reuse_check(path: Path) -> Callable[[dict], None] | None:
     return check
 
 
+def rerun(run: RecordedRun, checker: Checker, jobs: int, threads: int | None) -> EvalResult:
+    """Run a result file's :class:`~dyadbench.staleness.RecordedRun` again: its model (with the weights and
+    train split it used), split, ``--clips`` (all clips when it ran them all), protocol settings and seed."""
+    source = open_split(run.dataset, run.root, run.split)
+    clips = None if run.clips is None or run.clips >= len(source) else run.clips
+    return run_one(run.model, source, checker.train_split(run), run.config, cfg_scale=run.cfg_scale,
+                   weights=checker.weights(run), clips=clips, jobs=jobs, predictions_dir=None, threads=threads)
+
+
+def rerun_stale(out: Path, jobs: int, threads: int | None) -> None:
+    """``sweep --stale``: re-run every stale result file under ``out`` and write it over the file (kept
+    without per-clip rows when it had none)."""
+    checker = Checker(generate=True)
+    files = result_files([out])
+    rerun_count = 0
+    for path in files:
+        verdict = checker.check(path)
+        if verdict.status != STALE:
+            continue
+        click.echo(f"re-running {verdict.line()}")
+        run = recorded_run(load_result(path))
+        result = rerun(run, checker, jobs, threads)
+        click.echo(summary(result).splitlines()[0] + f" -> {path}")
+        save_result(result if run.per_clip else without_per_clip(result), path)
+        rerun_count += 1
+    click.echo(f"{rerun_count} stale result file(s) of {len(files)} under {out} re-run")
+
+
+def _given(ctx: click.Context, names: tuple[str, ...]) -> list[str]:
+    """The command-line spelling of the options among ``names`` that the user gave."""
+    return [p.opts[0] for p in ctx.command.params if p.name in names
+            and ctx.get_parameter_source(p.name) in (ParameterSource.COMMANDLINE, ParameterSource.ENVIRONMENT)]
+
+
 def _csv(value: str, what: str) -> list[str]:
     items = [v.strip() for v in value.split(",") if v.strip()]
     if not items:
@@ -89,8 +134,9 @@ def _csv(value: str, what: str) -> list[str]:
 
 
 @click.command()
-@click.option("--models", required=True,
-              help="Comma-separated registered models, e.g. zero,mean-frame,oracle (see `dyadbench models`).")
+@click.option("--models", default=None,
+              help="Comma-separated registered models, e.g. zero,mean-frame,oracle (see `dyadbench models`). "
+                   "Required unless --stale.")
 @click.option("--splits", default=None,
               help="Comma-separated splits [default: test,ood; for a single split folder as --data, that "
                    "folder alone, under its name].")
@@ -108,10 +154,16 @@ def _csv(value: str, what: str) -> list[str]:
               help="Keep per-clip metrics in each result file. --no-per-clip keeps the mean metrics only "
                    "(small files, e.g. results committed beside the leaderboards).")
 @click.option("--force", is_flag=True, help="Re-run and overwrite runs whose result file exists.")
-def sweep(models: str, splits: str | None, context_list: list[int], turn_seconds: float, tail: str,
-          history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
+@click.option("--stale", is_flag=True,
+              help="Re-run only the result files under --out whose provenance no longer matches the current "
+                   "code and data (the rows `dyadbench leaderboard` warns about), each with the settings it "
+                   "records, writing over the file. Takes only --out, --jobs and --threads.")
+@click.pass_context
+def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
+          tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
-          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool) -> None:
+          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
+          stale: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
     \b
@@ -119,7 +171,20 @@ def sweep(models: str, splits: str | None, context_list: list[int], turn_seconds
       dyadbench sweep --models zero,mean-frame,median-frame,random,mime,lagged-mirror,nn-retrieval,oracle \\
           --splits test,ood --contexts 0,3,7 --out results/ --no-per-clip --jobs 2
       dyadbench leaderboard results/ --out leaderboards/ --latex
+    Rows whose provenance no longer matches (e.g. a model's new version) are re-run by:
+      dyadbench sweep --stale --out results/ --jobs 2
     """
+    if stale:
+        given = _given(ctx, RUN_OPTIONS)
+        if given:
+            raise ConfigError(f"--stale re-runs each stale file with the settings it records: "
+                              f"{', '.join(given)} cannot be given with it")
+        check_cache()
+        check_folder(out, f"--out {out}")
+        rerun_stale(out, jobs, threads)
+        return
+    if models is None:
+        raise ConfigError("--models is required (or --stale to re-run the stale result files under --out)")
     names = _csv(models, "models")
     for name in names:
         MODELS.get(name)

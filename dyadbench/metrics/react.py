@@ -320,7 +320,8 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
 
     ``per_sample`` holds (N,) arrays whose mean is the metric: ``FRCorr`` and ``FRDist`` (sum over the
     reactions of the best value over neighbours), ``FRDiv``, ``FRVar`` (mean variance of the sample's
-    reactions) and ``FRSyn`` (TLCC offset of reaction 0). FRDvs has no per-sample form.
+    reactions), ``FRSyn`` (TLCC offset of reaction 0) and ``FRSyn_all`` (mean offset of the sample's
+    reactions; its mean over samples equals the metric up to float32 rounding). FRDvs has no per-sample form.
     """
     p, lst, sp, (indptr, indices) = check_inputs(predictions, listener, speaker, neighbours, reactions)
     corr = _sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))
@@ -340,7 +341,7 @@ def evaluate(predictions, listener, speaker, neighbours, *, reactions: int | Non
     }
     var = variances.mean(axis=(1, 2))
     per_sample = {"FRCorr": corr, "FRDist": dist, "FRDiv": div, "FRVar": var,
-                  "FRSyn": offsets[:, 0].astype(np.float64)}
+                  "FRSyn": offsets[:, 0].astype(np.float64), "FRSyn_all": offsets.mean(axis=1, dtype=np.float64)}
     return metrics, per_sample
 
 

@@ -10,7 +10,9 @@ with the bad-input policy of every suite (:mod:`dyadbench.scoring.policy`), trun
 length (counted), and scored with :func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by
 ``derive_seed(seed, stem)``. Predictions with NaN/inf values or fewer than
 :data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are excluded and listed with the reason;
-predictions without ground truth are listed as extra. Aggregation is the plain mean over clips.
+predictions without ground truth are listed as extra. Aggregation is the plain mean over clips; every
+column's standard error and bootstrap CI resample dialogues (both speakers of a clip together,
+:mod:`dyadbench.uncertainty`).
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ import numpy as np
 import scipy
 import sklearn
 
+from dyadbench import uncertainty
 from dyadbench.arrays import check_motion
 from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import InputError
@@ -149,6 +152,7 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     metrics, undefined = _aggregate(rows)
+    spread, method = uncertainty.estimate(SUITE, rows, list(suite.KEYS), seed=seed)
     present = {job.stem for job in jobs_list}
     notes = (policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
              + _undefined_notes(undefined, len(rows)))
@@ -166,6 +170,8 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
         config=_config(seed, jobs, inputs),
         notes=notes,
         columns=columns(),
+        uncertainty=spread,
+        uncertainty_method=method,
     )
 
 

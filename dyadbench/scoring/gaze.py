@@ -13,6 +13,11 @@ of its mean and counted in the notes.
 
 The style cosine error needs a frozen style encoder (:class:`dyadbench.metrics.gaze.StyleEncoder`):
 pass it as ``style_encoder``; without one ``style_ce`` is not reported.
+
+Uncertainty (:mod:`dyadbench.uncertainty`, resampling sessions): the means over sequences get a
+cluster-robust standard error and a bootstrap CI; the pooled columns (fix/saccade ratio, CompScore, for
+prediction and ground truth, and ``sim_gt``) are recomputed from the resampled frame counts
+(:func:`pooled_statistics`).
 """
 
 from __future__ import annotations
@@ -22,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from dyadbench import uncertainty
 from dyadbench.arrays import check_motion
 from dyadbench.datasets.gaze import SessionFile, open_split
 from dyadbench.errors import InputError
@@ -186,6 +192,27 @@ def _add_style(results: list[dict], items: dict[str, ScoreItem], cfg: GazeSuiteC
                                   else float("nan"))
 
 
+def pooled_statistics(counts: list[dict]) -> dict[str, uncertainty.SetStatistic]:
+    """The split-level columns as functions of sequence weights w (B, N) (:mod:`dyadbench.uncertainty`;
+    all ones: the split's values): FixRatio = Σ w·fix / max(1, Σ w·(fix + sac)) over pooled frame counts,
+    CompScore = Σ w·comp_sum / Σ w·comp_n over pooled velocity frames, for the prediction and the ground
+    truth, and SimWithGT from those aggregates (:func:`dyadbench.metrics.gaze.sim_with_gt`)."""
+    total = {k: np.array([c[k] for c in counts], dtype=np.float64) for k in counts[0]}
+
+    def fix(who: str) -> uncertainty.SetStatistic:
+        return lambda w: (w @ total[f"{who}_fix"]) / np.maximum(1.0, w @ (total[f"{who}_fix"] + total[f"{who}_sac"]))
+
+    def comp(who: str) -> uncertainty.SetStatistic:
+        return uncertainty.ratio(total[f"{who}_comp_sum"], total[f"{who}_comp_n"])
+
+    def saccade(who: str) -> uncertainty.SetStatistic:
+        return lambda w: 1.0 - fix(who)(w)
+
+    return {"fix_ratio": fix("pred"), "saccade_ratio": saccade("pred"), "comp_score": comp("pred"),
+            "gt_fix_ratio": fix("gt"), "gt_saccade_ratio": saccade("gt"), "gt_comp_score": comp("gt"),
+            "sim_gt": lambda w: gaze.sim_with_gt(fix("gt")(w), comp("gt")(w), fix("pred")(w), comp("pred")(w))}
+
+
 def _nanmean(values: list[float]) -> float:
     arr = np.asarray(values, dtype=np.float64)
     arr = arr[np.isfinite(arr)]
@@ -241,15 +268,10 @@ def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteCon
     keys = dict.fromkeys(k for row in per_item for k in row
                          if k not in NOT_METRICS and not k.startswith(("motion_beats_", "bas_note_")))
     metrics = {k: _nanmean([row.get(k, float("nan")) for row in per_item]) for k in keys}
-    if results:
-        total = {k: sum(r["counts"][k] for r in results) for k in results[0]["counts"]}
-        fix = total["pred_fix"] / max(1, total["pred_fix"] + total["pred_sac"])
-        gt_fix = total["gt_fix"] / max(1, total["gt_fix"] + total["gt_sac"])
-        comp = total["pred_comp_sum"] / total["pred_comp_n"]
-        gt_comp = total["gt_comp_sum"] / total["gt_comp_n"]
-        metrics.update(fix_ratio=fix, saccade_ratio=1.0 - fix, comp_score=comp, gt_fix_ratio=gt_fix,
-                       gt_saccade_ratio=1.0 - gt_fix, gt_comp_score=gt_comp,
-                       sim_gt=gaze.sim_with_gt(gt_fix, gt_comp, fix, comp))
+    pooled = pooled_statistics([r["counts"] for r in results])
+    metrics.update({k: float(fn(np.ones((1, len(results))))[0]) for k, fn in pooled.items()})
+    spread, method = uncertainty.estimate(SUITE, per_item, [k for k in metrics if k not in pooled], seed=seed,
+                                          set_level=pooled)
     config_dict = {**asdict(cfg), "seed": seed, "fps": FPS, "velocity": "first difference, deg/frame",
                    "aggregation": "error metrics: mean over sequences; fix_ratio/comp_score: pooled frames; "
                                   "sim_gt: from split-level aggregates",
@@ -258,7 +280,8 @@ def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteCon
     return ScoreReport(suite=SUITE, metrics=metrics, per_item=per_item, excluded=excluded,
                        coverage={"expected": coverage["expected"], "scored": len(per_item),
                                  "missing": coverage["missing"], "extra": coverage["extra"]},
-                       config=config_dict, notes=notes, columns=gaze.COLUMNS.table_columns(set(metrics)))
+                       config=config_dict, notes=notes, columns=gaze.COLUMNS.table_columns(set(metrics)), uncertainty=spread,
+                       uncertainty_method=method)
 
 
 def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,

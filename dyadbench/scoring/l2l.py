@@ -7,6 +7,9 @@ the split defaults to ``test``. The suite is split-level (pooled statistics), so
 are scored together and coverage lists the missing ones. Bad input follows the policy of every suite
 (:mod:`dyadbench.scoring.policy`): predictions with NaN/inf or fewer than two common frames are excluded
 and listed, the pooled statistics are computed over the scored ones.
+Uncertainty (:mod:`dyadbench.uncertainty`; every window its own dialogue): FD and P-FD are means over
+sequences (cluster-robust s.e., bootstrap CI); L2, Var and rPCC are recomputed on every resample from
+per-sequence sums (:func:`pooled_statistics`); SI has none (:data:`NO_UNCERTAINTY`).
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from pathlib import Path
 import numpy as np
 import sklearn
 
+from dyadbench import uncertainty
 from dyadbench.arrays import check_motion
 from dyadbench.datasets import l2l as layout
 from dyadbench.errors import InputError
@@ -43,6 +47,10 @@ def _report(stems, preds, gts, speakers, *, expected, excluded, extra, warnings,
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     metrics, per_sequence = suite.split_metrics(preds, gts, speakers, params, per_sequence)
     rows = [{"clip": stem, **values} for stem, values in zip(stems, per_sequence)]
+    spread, method = uncertainty.estimate(
+        SUITE, rows, [f"{m}_{c}" for m in ("fd", "pfd") for c in params.components], seed=seed,
+        set_level=pooled_statistics(preds, gts, speakers, params),
+        unavailable={f"{m}_{c}": NO_UNCERTAINTY for m in ("si", "si_gt") for c in params.components})
     present = set(stems) | {e["clip"] for e in excluded}
     return ScoreReport(
         suite=SUITE, metrics=metrics, per_item=rows, excluded=excluded,
@@ -55,7 +63,50 @@ def _report(stems, preds, gts, speakers, *, expected, excluded, extra, warnings,
                 "versions": {"numpy": np.__version__, "scikit-learn": sklearn.__version__}},
         notes=policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
         + ["var and si are judged against var_gt and si_gt (the ground truth's own values)"],
-        columns=columns(params))
+        columns=columns(params), uncertainty=spread, uncertainty_method=method)
+
+
+NO_UNCERTAINTY = "k-means is fitted on the pooled ground truth: a refit per bootstrap resample is too costly"
+
+
+def pooled_statistics(preds, gts, speakers, params: suite.L2LParams) -> dict[str, uncertainty.SetStatistic]:
+    """The pooled columns as functions of sequence weights w (B, N) (:mod:`dyadbench.uncertainty`; all
+    ones: the split's values up to round-off), from per-sequence sums of the sequences cut to their common
+    length: L2 = Σ w·SSE / Σ w·(T·d); Var = mean over dims of Σ w·Σx² / Σ w·T − (Σ w·Σx / Σ w·T)²;
+    rPCC = |ρ(g, a) − ρ(p, a)| with ρ from the pooled sums of x, y, x², y², xy of the flattened entries.
+    SI is not among them (:data:`NO_UNCERTAINTY`)."""
+    triples = [truncate_to_shortest(*t) for t in zip(preds, gts, speakers)]
+    out: dict[str, uncertainty.SetStatistic] = {}
+    for c in params.components:
+        p, g, a = ([FLAME56.component(np.asarray(t[i], np.float64), c) for t in triples] for i in range(3))
+        out[f"l2_{c}"] = uncertainty.ratio([np.sum((x - y) ** 2) for x, y in zip(p, g)], [x.size for x in p])
+        out[f"var_{c}"], out[f"var_gt_{c}"] = _pooled_variance(p), _pooled_variance(g)
+        out[f"rpcc_{c}"] = _pooled_rpcc(p, g, a)
+    return out
+
+
+def _pooled_variance(xs: list[np.ndarray]) -> uncertainty.SetStatistic:
+    frames = np.array([len(x) for x in xs], np.float64)
+    first = np.stack([x.sum(axis=0) for x in xs])
+    second = np.stack([(x ** 2).sum(axis=0) for x in xs])
+
+    def var(w: np.ndarray) -> np.ndarray:
+        n = (w @ frames)[:, None]
+        return ((w @ second) / n - ((w @ first) / n) ** 2).mean(axis=1)
+    return var
+
+
+def _pooled_rpcc(p: list[np.ndarray], g: list[np.ndarray], a: list[np.ndarray]) -> uncertainty.SetStatistic:
+    def sums(xs, ys) -> np.ndarray:  # (N, 6): n, Σx, Σy, Σx², Σy², Σxy per sequence
+        return np.array([[x.size, x.sum(), y.sum(), (x * x).sum(), (y * y).sum(), (x * y).sum()]
+                         for x, y in zip(xs, ys)], np.float64)
+
+    def rho(w: np.ndarray, s: np.ndarray) -> np.ndarray:
+        n, sx, sy, sxx, syy, sxy = (w @ s).T
+        return (sxy - sx * sy / n) / np.sqrt((sxx - sx * sx / n) * (syy - sy * sy / n))
+
+    ga, pa = sums(g, a), sums(p, a)
+    return lambda w: np.abs(rho(w, ga) - rho(w, pa))
 
 
 def _sequence_metrics(stems, preds, gts, speakers, excluded, params):

@@ -15,6 +15,9 @@ NaN/inf (after the float32 rounding) or has fewer than 750 frames is excluded an
 without a prediction is listed as missing, a name that is no sample's speaker path as extra. The
 metrics are computed over the scored samples, each against the full pool of real listener reactions
 (the neighbour matrix's rows of the scored samples, all its columns); FRDvs pairs the scored samples.
+Uncertainty (:mod:`dyadbench.uncertainty`): every column but FRDvs is a mean over samples and gets a
+standard error and a bootstrap CI resampling sessions (both roles and every segment of a session
+together); FRDvs has none (:data:`NO_UNCERTAINTY`).
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ import numba
 import numpy as np
 import tslearn
 
+from dyadbench import uncertainty
 from dyadbench.arrays import require_float, shape_problem
 from dyadbench.datasets.react import REACT25, SCORED_SPLITS, ReactSplit, neighbour_path
 from dyadbench.errors import InputError
@@ -39,6 +43,9 @@ from dyadbench.scoring.report import ScoreItem, ScoreReport
 SUITE = "react"
 STACKED_KEY = "predictions"
 PER_SAMPLE_KEYS = ("FRCorr", "FRDist", "FRDiv", "FRVar", "FRSyn")
+#: Columns without an uncertainty, and why (the others are means over samples, resampled by session).
+NO_UNCERTAINTY = {"FRDvs": "diversity across speaker samples: a bootstrap resample repeats samples, whose "
+                           "zero-distance pairs bias it, so no resampled interval is given"}
 
 
 def columns() -> list[ColumnSpec]:
@@ -84,13 +91,16 @@ def _report(stems: list[str], found: SamplePredictions, listener: np.ndarray, sp
         numba.set_num_threads(previous)
     rows = [{"clip": stems[k], **{key: float(per_sample[key][i]) for key in PER_SAMPLE_KEYS}}
             for i, k in enumerate(keep)]
+    spread, method = uncertainty.estimate(
+        SUITE, [{**row, "FRSyn_all": float(per_sample["FRSyn_all"][i])} for i, row in enumerate(rows)],
+        [*PER_SAMPLE_KEYS, "FRSyn_all"], seed=seed, unavailable=NO_UNCERTAINTY)
     notes = (policy.warning_notes(warnings) + policy.extra_notes(found.extra, stems) + list(notes)
              + [f"{name} not computed: {why}" for name, why in suite.NOT_COMPUTED.items()])
     return ScoreReport(suite=SUITE, metrics=metrics, per_item=rows, excluded=found.excluded,
                        coverage={"expected": len(stems), "scored": len(keep), "missing": found.missing,
                                  "extra": found.extra},
                        config=_config(inputs, seed, jobs, predictions.shape[1], predictions.shape[2], neighbours),
-                       notes=notes, columns=columns())
+                       notes=notes, columns=columns(), uncertainty=spread, uncertainty_method=method)
 
 
 @dataclass

@@ -62,6 +62,8 @@ class ScoreReport:
     - ``per_item``: one dict per scored item; first key ``clip`` (the prediction's stem / id).
     - ``excluded``: ``{"clip": ..., "reason": ...}`` for predictions present but not scored.
     - ``coverage``: ``{"expected": n, "scored": n, "missing": [...], "extra": [...]}`` vs ground truth.
+    - ``uncertainty`` / ``uncertainty_method``: each column's standard error and bootstrap CI over
+      dialogues, computed when scoring (:func:`dyadbench.uncertainty.estimate`), and how.
     """
 
     suite: str
@@ -72,6 +74,8 @@ class ScoreReport:
     config: dict = field(default_factory=dict)
     notes: list[str] = field(default_factory=list)
     columns: list[ColumnSpec] = field(default_factory=list)  # printed table order (paper order)
+    uncertainty: dict = field(default_factory=dict)  # metric -> se, ci_low, ci_high (dyadbench.uncertainty)
+    uncertainty_method: dict = field(default_factory=dict)  # method, resamples, level, seed, clusters
     dyadbench_version: str = __version__
 
     @property
