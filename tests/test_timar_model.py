@@ -42,11 +42,22 @@ def test_space_timesteps_keeps_the_published_sampling_steps():
     assert space_timesteps(1000, 5) == [0, 250, 500, 749, 999]
 
 
+def _cosine_alpha_bar(u: float) -> float:
+    """Nichol & Dhariwal (2021) eq. 17: ᾱ(u) = f(u) / f(0), f(u) = cos²((u + 0.008) / 1.008 · π / 2), u = t / T."""
+    f = lambda v: math.cos((v + 0.008) / 1.008 * math.pi / 2) ** 2  # noqa: E731
+    return f(u) / f(0)
+
+
 def test_respaced_process_keeps_alpha_bar_at_kept_steps():
-    base = np.cumprod(1 - cosine_betas(1000))
+    # step t of the 1000-step process has noised t + 1 times: ᾱ_t = ᾱ((t + 1) / 1000); the last step's β is
+    # capped at 0.999 (the closed form gives 1 - cos²(π/2) / ... = 1), so ᾱ_999 = 0.001 ᾱ(999 / 1000)
+    kept = [0, 250, 500, 749, 999]  # round(i · 999 / 4), i = 0..4
+    expected = [_cosine_alpha_bar((t + 1) / 1000) for t in kept[:-1]] + [0.001 * _cosine_alpha_bar(0.999)]
     spaced = GaussianDiffusion.respaced(1000, 5)
-    np.testing.assert_allclose(spaced.alphas_cumprod, base[[0, 250, 500, 749, 999]], rtol=1e-8)
-    assert spaced.timestep_map.tolist() == [0, 250, 500, 749, 999]
+    np.testing.assert_allclose(spaced.alphas_cumprod, expected, rtol=1e-9)
+    ratios = np.array(expected) / np.array([1.0, *expected[:-1]])
+    np.testing.assert_allclose(spaced.betas, 1 - ratios, rtol=1e-9)
+    assert spaced.timestep_map.tolist() == kept
 
 
 def test_cosine_schedule_is_increasing_and_capped():
