@@ -41,6 +41,7 @@ import numpy as np
 import pandas as pd
 
 from dyadbench import atomic
+from dyadbench import leaderboard_uncertainty as spread
 from dyadbench.errors import InputError
 from dyadbench.metrics.columns import ColumnSpec, SuiteColumns, declared
 from dyadbench.motion import LAYOUTS
@@ -206,7 +207,7 @@ def table_columns(suite: str, metrics: Iterable[str] = ()) -> list[str]:
     return list(dict.fromkeys(metrics)) if columns is None else [c.key for c in columns.table_columns()]
 
 
-def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
+def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "none") -> pd.DataFrame:
     """The paper-layout table of one suite from the long table (scaled values; see module docstring).
 
     Rank = ``rank(method="min")`` of the primary column within a :data:`RANK_GROUP`, ascending when lower
@@ -223,12 +224,16 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk") -> pd.DataFrame:
                        model=_variant_models(part), flags=part["flags"].fillna(""),
                        rank_group=[prediction_set(*r) for r in zip(part["items"], part["clips"], part["digest"])])
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
+    for f in spread.MODES[uncertainty]:  # <col>_se or <col>_ci_low/_ci_high (dyadbench.leaderboard_uncertainty)
+        extra = part.pivot_table(index=index, columns="metric", values=f, aggfunc="first")
+        wide = wide.merge(extra.add_suffix(f"_{f}").reset_index(), on=index, how="left")
+    shown = [c for key in columns for c in (key, *spread.columns(key, uncertainty))]
     items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
-    wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + columns)
+    wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + shown)
     wide["rank"] = _ranks(wide, declared(suite))
     wide = wide.assign(_largest=-wide["items"].astype("float64")).sort_values(
         SETTING + ["_largest", "rank_group", "oracle", "rank", "model"], kind="stable", na_position="last")
-    return wide[head + columns].reset_index(drop=True)
+    return wide[head + shown].reset_index(drop=True)
 
 
 def _ranks(wide: pd.DataFrame, columns: SuiteColumns | None) -> pd.Series:
@@ -324,7 +329,7 @@ def _latex_rows(group: pd.DataFrame, columns: list[str], specs: SuiteColumns | N
             text = "--" if math.isnan(v) else f"{v:.{digits}f}"
             if c in best and row.name in ranked.index and not math.isnan(v) and np.isclose(v, best[c]):
                 text = rf"\textbf{{{text}}}"
-            cells.append(text)
+            cells.append(text + spread.latex_suffix(row, c, digits))
         lines.append(" & ".join(cells) + r" \\")
     return lines
 
@@ -349,12 +354,15 @@ def _escape(text: str) -> str:
     return text
 
 
-def table_texts(long: pd.DataFrame, latex: bool = False) -> dict[str, str]:
+def table_texts(long: pd.DataFrame, latex: bool = False, uncertainty: str = "none") -> dict[str, str]:
     """Every table of one build by file name: ``long.csv``, ``<suite>_wide.csv`` per suite and, with
-    ``latex``, ``<suite>_wide.tex``. Built whole in memory, so a failure writes nothing."""
+    ``latex``, ``<suite>_wide.tex``. Built whole in memory, so a failure writes nothing. ``uncertainty``
+    ``se`` or ``ci`` adds the results' recorded uncertainty to the wide tables
+    (:mod:`dyadbench.leaderboard_uncertainty`)."""
     tables = {"long.csv": _csv(long)}
+    measured = long if uncertainty == "none" else spread.with_uncertainty(long)
     for suite in sorted(set(long["suite"])):
-        wide = wide_table(long, suite)
+        wide = wide_table(measured, suite, uncertainty)
         tables[f"{suite}_wide.csv"] = _csv(wide)
         if latex:
             tables[f"{suite}_wide.tex"] = latex_table(wide, suite)

@@ -23,6 +23,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "train": ("dyadbench.cli.train:train", "Train a reference model (TIMAR, SFMS, StyGazeTalk)."),
     "leaderboard": ("dyadbench.cli.leaderboard:leaderboard", "Build CSV/LaTeX leaderboards from result files."),
     "report": ("dyadbench.cli.report:report", "Write the results page (RESULTS.md) from result and benchmark files."),
+    "compare": ("dyadbench.cli.compare:compare_command", "Paired differences between two runs, with uncertainty."),
     "plot": ("dyadbench.cli.plot:plot", "Plot trajectories and metric-vs-context curves."),
     "models": ("dyadbench.cli.listing:models", "List registered models and baselines."),
     "datasets": ("dyadbench.cli.listing:datasets", "List registered datasets and metric suites."),

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from dyadbench.leaderboard import long_table, table_texts, write_tables
+from dyadbench.leaderboard_uncertainty import MODES
 from dyadbench.outputs import check_folder
 from dyadbench.results import result_files
 from dyadbench.staleness import STALE, UNVERIFIED, Checker, check_files
@@ -24,7 +25,12 @@ PAPER_ROWS = Path(__file__).resolve().parents[2] / "leaderboards" / "paper_timar
                    "TIMAR Tables 1-2 (leaderboards/paper_timar.csv).")
 @click.option("--no-paper", is_flag=True, help="Leave published rows out.")
 @click.option("--latex", is_flag=True, help="Also write a LaTeX tabular per suite.")
-def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], no_paper: bool, latex: bool) -> None:
+@click.option("--uncertainty", type=click.Choice(list(MODES)), default="none", show_default=True,
+              help="Add each result's recorded uncertainty to the wide tables: se = <col>_se columns "
+                   "(value ± se in LaTeX), ci = <col>_ci_low/<col>_ci_high (value [low, high] in LaTeX); "
+                   "empty for results recorded without it and for published rows.")
+def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], no_paper: bool, latex: bool,
+                uncertainty: str) -> None:
     """Build leaderboards from RESULTS (result files or folders; default: results/).
 
     \b
@@ -46,7 +52,7 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
     sources = list(results) or [Path("results")]
     papers = [] if no_paper else (list(paper) or ([PAPER_ROWS] if PAPER_ROWS.is_file() else []))
     long = long_table(sources, papers)
-    written, removed = write_tables(out, table_texts(long, latex))
+    written, removed = write_tables(out, table_texts(long, latex, uncertainty))
     n_dyad = int((long["source"] == "dyadbench").sum())
     click.echo(f"{n_dyad} dyadbench rows, {len(long) - n_dyad} published rows")
     for path in written:
