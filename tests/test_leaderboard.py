@@ -14,7 +14,7 @@ from click.testing import CliRunner
 from dyadbench.cli import cli
 from dyadbench.cli.leaderboard import PAPER_ROWS
 from dyadbench.errors import InputError
-from dyadbench.leaderboard import latex_table, long_table, paper_rows, wide_table
+from dyadbench.leaderboard import TABLE_NAMES, latex_table, long_table, paper_rows, wide_table
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.runner import evaluate
@@ -157,7 +157,10 @@ def test_committed_leaderboards_are_rebuilt_exactly_from_committed_results(tmp_p
     result = CliRunner().invoke(cli, ["leaderboard", "results", "--out", str(tmp_path), "--latex"],
                                 catch_exceptions=False)
     assert result.exit_code == 0, result.output
-    for name in ("long.csv", "dualtalk_wide.csv", "dualtalk_wide.tex"):
+    committed = {p.name for pattern in TABLE_NAMES for p in (REPO / "leaderboards").glob(pattern)}
+    assert {"long.csv", "dualtalk_wide.tex", "gaze_wide.csv", "gaze_wide.tex", "l2l_wide.csv"} <= committed
+    assert {p.name for p in tmp_path.iterdir()} == committed  # the build writes every committed table, no other
+    for name in sorted(committed):
         assert (tmp_path / name).read_bytes() == (REPO / "leaderboards" / name).read_bytes(), name
 
 
