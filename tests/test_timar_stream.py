@@ -19,6 +19,9 @@ from test_timar_model import micro_model
 
 BUILD = {"timar": (build_timar, "faithful"), "timar-stream": (build_timar_stream, "stream")}
 TURN = 0.2  # the micro models' turn: 5 frames, 3200 samples
+# cached minus uncached output: `timar` re-encodes a slid window in another order of float operations
+# (observed up to 9e-7); `timar-stream` computes every turn's keys/values once, so its cache is exact
+CACHE_ATOL = {"timar": 1e-5, "timar-stream": 0.0}
 
 
 @pytest.fixture(scope="module")
@@ -59,13 +62,13 @@ def test_cached_stream_equals_uncached_recomputation(name, context, weights):
     cached = run(name, weights, context, cache=True)
     uncached = run(name, weights, context, cache=False)
     assert cached.shape == (60, 56)
-    np.testing.assert_allclose(cached, uncached, atol=1e-5, rtol=0)
+    np.testing.assert_allclose(cached, uncached, atol=CACHE_ATOL[name], rtol=0)
 
 
 @pytest.mark.parametrize("name", BUILD)
 def test_cached_equals_uncached_with_guidance(name, weights):
     np.testing.assert_allclose(run(name, weights, 2, cache=True, cfg_scale=2.0),
-                               run(name, weights, 2, cache=False, cfg_scale=2.0), atol=1e-5, rtol=0)
+                               run(name, weights, 2, cache=False, cfg_scale=2.0), atol=CACHE_ATOL[name], rtol=0)
 
 
 @pytest.mark.parametrize("name", BUILD)
