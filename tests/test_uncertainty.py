@@ -248,4 +248,5 @@ def test_react_columns_are_resampled_by_session_and_frdvs_is_marked_unavailable(
     sums = frcorr.reshape(3, 2).sum(axis=1)
     assert report.uncertainty["FRCorr"]["se"] == pytest.approx(
         math.sqrt(3 / 2 * np.sum((sums - 2 * frcorr.mean()) ** 2)) / 6, rel=1e-12)
-    assert report.uncertainty["FRSyn_all"]["ci_low"] <= report.metrics["FRSyn_all"] <= report.uncertainty["FRSyn_all"]["ci_high"]
+    syn = report.uncertainty["FRSyn_all"]
+    assert syn["ci_low"] <= report.metrics["FRSyn_all"] <= syn["ci_high"]

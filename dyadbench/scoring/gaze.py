@@ -280,8 +280,8 @@ def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteCon
     return ScoreReport(suite=SUITE, metrics=metrics, per_item=per_item, excluded=excluded,
                        coverage={"expected": coverage["expected"], "scored": len(per_item),
                                  "missing": coverage["missing"], "extra": coverage["extra"]},
-                       config=config_dict, notes=notes, columns=gaze.COLUMNS.table_columns(set(metrics)), uncertainty=spread,
-                       uncertainty_method=method)
+                       config=config_dict, notes=notes, columns=gaze.COLUMNS.table_columns(set(metrics)),
+                       uncertainty=spread, uncertainty_method=method)
 
 
 def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, jobs: int = 1,
