@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.causality import check_causal
 from dyadbench.protocol.config import ProtocolConfig
-from dyadbench.protocol.interface import ModelOptions
+from dyadbench.protocol.interface import ModelOptions, StreamingModel
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.training.checkpoint import save_checkpoint
 from models.timar.registry import SHIPPED, build_timar, build_timar_stream
@@ -80,8 +81,49 @@ def test_same_seed_same_output_other_seed_other_output(name, weights):
 
 @pytest.mark.parametrize("name", BUILD)
 def test_history_agent_motion_is_never_used(name, weights):
-    # the model masks history agent slots: handing it its own outputs changes nothing
-    np.testing.assert_array_equal(run(name, weights, 3), run(name, weights, 3, history_agent="outputs"))
+    # the model masks history agent slots: history motion of 50-s.d. noise changes nothing, while the same
+    # check catches a model that reads it
+    model = BUILD[name][0](ModelOptions(weights=weights[name]))
+    assert _ignores_history_agent_motion(model)
+    assert not _ignores_history_agent_motion(_ReadsHistory(BUILD[name][0](ModelOptions(weights=weights[name]))))
+
+
+class _NoisyHistory(StreamingModel):
+    """``model`` handed seeded noise of s.d. 50 as its history agent motion at every turn."""
+
+    def __init__(self, model: StreamingModel):
+        self.model, self.info = model, model.info
+
+    def start_stream(self, ctx):
+        self.rng = np.random.default_rng(0)
+        self.model.start_stream(ctx)
+
+    def predict_turn(self, turn):
+        noise = 50 * self.rng.normal(size=(turn.history_turns * turn.frames_per_turn, 56))
+        return self.model.predict_turn(replace(turn, agent_history=noise.astype(np.float32)))
+
+
+class _ReadsHistory(StreamingModel):
+    """A control that reads history agent motion: ``model``'s output plus its history's mean."""
+
+    def __init__(self, model: StreamingModel):
+        self.model, self.info = model, model.info
+
+    def start_stream(self, ctx):
+        self.model.start_stream(ctx)
+
+    def predict_turn(self, turn):
+        shift = turn.agent_history.mean() if turn.agent_history is not None and turn.agent_history.size else 0.0
+        return self.model.predict_turn(turn) + np.float32(shift)
+
+
+def _ignores_history_agent_motion(model: StreamingModel) -> bool:
+    """Same stream with history agent motion masked and replaced by noise (3 history turns, 12 turns)."""
+    clip = make_clip("c0", 2.4, seed=5)
+    masked = stream_agent(model, clip, "speaker1", ProtocolConfig(turn_seconds=TURN, context=3)).motion
+    noisy = stream_agent(_NoisyHistory(model), clip, "speaker1",
+                         ProtocolConfig(turn_seconds=TURN, context=3, history_agent="outputs")).motion
+    return np.array_equal(masked, noisy)
 
 
 def test_context_changes_the_faithful_output(weights):
