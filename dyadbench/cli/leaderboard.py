@@ -38,8 +38,10 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
     suite no longer present or .tex without --latex, are removed, so OUT holds exactly this build):
       OUT/long.csv            one row per source/model/dataset/split/protocol/context/metric,
                               raw and publication-scaled values, oracle flag, source=dyadbench|paper
-      OUT/<suite>_wide.csv    the paper table layout (scaled as printed), ranked by the first column;
-                              oracle rows are marked and never ranked
+      OUT/<suite>_wide.csv    the paper table layout (scaled as printed), ranked by the suite's primary
+                              column in its direction, only among rows scored on the same predictions
+                              (rank_group: items, clips, data digest); oracle rows are marked and never
+                              ranked
       OUT/<suite>_wide.tex    with --latex
     Numbers come only from result files written by `dyadbench eval` / `dyadbench sweep` and from the
     transcribed published rows.
