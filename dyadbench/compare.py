@@ -11,6 +11,8 @@ d_i = b_i − a_i (run B minus run A; items where either value is NaN left out o
 - ``significant``: the CI excludes 0; ``better``: "A" or "B" by the column's direction when significant,
   "=" when not, "" for descriptive columns without a direction.
 
+With few dialogues (< :data:`MIN_DIALOGUES`) the percentile CI undercovers; the result says so in ``notes``.
+
 The per-item columns are compared: for a pooled column (e.g. L2L's L2, gaze FixRatio) that is the mean
 of the per-item values, not the pooled figure.
 """
@@ -32,6 +34,9 @@ from dyadbench.results import SCHEMA, load_result
 from dyadbench.uncertainty import LEVEL, RESAMPLES, Bootstrap, dialogue_of
 
 RESULT_NAMES = ("result.json", "results.json")  # eval --out, score --out
+MIN_DIALOGUES = 20
+FEW_DIALOGUES = (f"fewer than {MIN_DIALOGUES} dialogues: the percentile bootstrap CI is too narrow (it can exclude 0 "
+                 f"where the t-test's p is large); read significance with care")
 COLUMNS = ("metric", "higher_is_better", "items", "mean_a", "mean_b", "diff", "se", "ci_low", "ci_high",
            "p_value", "significant", "better")
 
@@ -104,8 +109,9 @@ def compare(a: Run, b: Run, *, seed: int = 0, resamples: int = RESAMPLES, level:
     for key in keys:
         va, vb = (np.array([rows[c][key] for c in clips], dtype=np.float64) for rows in (rows_a, rows_b))
         columns.append(_column(key, higher_is_better(a.suite, key), va, vb, plan))
+    notes = [FEW_DIALOGUES] if len(plan.names) < MIN_DIALOGUES else []
     return {"a": str(a.source), "b": str(b.source), "suite": a.suite, "items": len(clips),
-            "difference": "B - A", "uncertainty_method": plan.method(), "columns": columns}
+            "difference": "B - A", "uncertainty_method": plan.method(), "notes": notes, "columns": columns}
 
 
 def _column(key: str, higher: bool | None, va: np.ndarray, vb: np.ndarray, plan: Bootstrap) -> dict:
@@ -155,4 +161,5 @@ def text_table(comparison: dict) -> str:
         lines.append(f"{c['metric']:<24} {c['mean_a']:>11.4g} {c['mean_b']:>11.4g} {c['diff']:>+11.4g} "
                      f"{c['se']:>9.2g} {ci:>24} {c['p_value']:>7.3g} {mark}{c['better']}")
     lines.append("* the CI excludes 0; better: by the column's direction (blank: no direction)")
+    lines += [f"note: {note}" for note in comparison["notes"]]
     return "\n".join(lines)

@@ -202,7 +202,9 @@ def test_compare_two_runs_differing_by_a_constant():
     base = [0.125 * k for k in (3, 9, 1, 4, 7, 2, 8, 5)]
     a = _run("a.json", {"mse_jaw": base, "sid_exp": base})
     b = _run("b.json", {"mse_jaw": [x + 0.5 for x in base], "sid_exp": [x + 0.25 for x in base]})
-    columns = {c["metric"]: c for c in compare(a, b, seed=1)["columns"]}
+    comparison = compare(a, b, seed=1)
+    assert comparison["notes"] and "fewer than 20 dialogues" in comparison["notes"][0]  # 4 dialogues here
+    columns = {c["metric"]: c for c in comparison["columns"]}
     mse, sid = columns["mse_jaw"], columns["sid_exp"]
     assert (mse["diff"], mse["se"], mse["ci_low"], mse["ci_high"]) == (0.5, 0.0, 0.5, 0.5)
     assert mse["significant"] and mse["better"] == "A" and mse["p_value"] == 0.0  # lower MSE is better: A
