@@ -50,8 +50,8 @@ from dyadbench.results import results_frame
 
 SETTING = ["source", "dataset", "split", "protocol", "context"]
 LONG_COLUMNS = ["source", "model", "oracle", "flags", "dataset", "split", "protocol", "context", "suite",
-                "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "clips", "digest", "seed", "tail",
-                "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
+                "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "clips", "digest",
+                "seed", "tail", "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
 _VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed"]
 _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
 
@@ -110,7 +110,8 @@ def paper_rows(path: str | Path, suite: str = "dualtalk") -> pd.DataFrame:
             rows.append({"source": r["source"], "model": r["model"], "oracle": False, "dataset": r["dataset"],
                          "split": r["split"], "protocol": r["protocol"], "context": context, "suite": suite,
                          "metric": metric, "component": _component(metric), "raw": value / spec.scale(metric),
-                         "scaled": value, "scale": spec.scale(metric), "higher_is_better": spec.higher_is_better(metric),
+                         "scaled": value, "scale": spec.scale(metric),
+                         "higher_is_better": spec.higher_is_better(metric),
                          "reference": f"{r['reference']} ({path.name})"})
     return pd.DataFrame(rows)
 
