@@ -23,7 +23,7 @@ import numpy as np
 import torch
 
 from output import write_result  # benchmarks/output.py
-from dyadbench.datasets.gaze import SYNTHETIC_SEED
+from dyadbench.datasets.synthetic_gaze import SYNTHETIC_SEED
 from dyadbench.registry import DATASETS
 from dyadbench.synth.gaze import DEFAULT_SESSIONS, SPEAKERS, make_gaze_session
 from models.stygazetalk.checkpoints import SHIPPED_STYLE_ENCODER, load_style_model

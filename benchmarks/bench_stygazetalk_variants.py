@@ -32,7 +32,7 @@ import numpy as np
 import torch
 
 from output import write_result  # benchmarks/output.py
-from dyadbench.datasets.gaze import SYNTHETIC_SEED
+from dyadbench.datasets.synthetic_gaze import SYNTHETIC_SEED
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
@@ -40,7 +40,7 @@ from dyadbench.registry import DATASETS, MODELS
 from dyadbench.metrics.gaze import sliding_windows
 from dyadbench.scoring.gaze import SEED_FRAMES, derangement, score_arrays
 from dyadbench.scoring.report import ScoreItem
-from dyadbench.synth.gaze import write_gaze_split
+from dyadbench.synth.gaze_writer import write_gaze_split
 from models.stygazetalk.checkpoints import SHIPPED_MODEL, load_style_model, load_system
 from models.stygazetalk.cli import train_generator, train_style_encoder
 from models.stygazetalk.config import get_style_config

@@ -59,6 +59,7 @@ class Registry:
 MODELS = Registry("model")
 DATASETS = Registry("dataset")
 SUITES = Registry("metric suite")
+EVALUATORS = Registry("frozen evaluator")
 
 # --- metric suites: "module:function" scoring files on disk (see dyadbench.scoring) ---------------
 SUITES.add("dualtalk", "dyadbench.scoring.dualtalk:score_paths",
@@ -69,6 +70,10 @@ SUITES.add("l2l", "dyadbench.scoring.l2l:score_paths",
            "Learning2Listen-line suite: L2, FD, P-FD, Var, SI, rPCC")
 SUITES.add("gaze", "dyadbench.scoring.gaze:score_paths",
            "Gaze-head suite (StyGazeTalk): MAE, Vel, MEE, FixRatio, CompScore, SimWithGT, BAS")
+
+# --- frozen evaluators: loaders ``load() -> network`` a suite scores every model with, by name ----------
+EVALUATORS.add("stygazetalk-style", "models.stygazetalk.evaluator:load_style_evaluator",
+               "Frozen, versioned StyGazeTalk SE-64 style encoder: the gaze suite's style_ce")
 
 # --- datasets: factories ``open_split(root: Path | None, split: str | None) -> ClipSource``; split None:
 # the split folder ``root`` itself (ClipSource.single_split), else the dataset's test split ----------
@@ -83,7 +88,7 @@ DATASETS.add("react", "dyadbench.datasets.react:open_split",
              "REACT 2023/2024 layout: split csv, Emotion csv, 3D_FV npy, neighbour matrix")
 DATASETS.add("gaze", "dyadbench.datasets.gaze:open_split",
              "dyadbench gaze-head session layout (7 angles in degrees at 25 fps + 16 kHz speech)")
-DATASETS.add("synthetic-gaze", "dyadbench.datasets.gaze:open_synthetic_split",
+DATASETS.add("synthetic-gaze", "dyadbench.datasets.synthetic_gaze:open_synthetic_split",
              "Embedded synthetic gaze-head sessions (generated on first use, cached)")
 
 # --- models: factories ``build(options: ModelOptions) -> StreamingModel | OfflineModel`` -------------

@@ -8,9 +8,11 @@ import pytest
 from dyadbench import atomic
 from dyadbench.datasets import gaze as gz
 from dyadbench.datasets.layouts import get_layout
+from dyadbench.datasets.synthetic_gaze import open_synthetic_split
 from dyadbench.datasets.wav import write_wav
 from dyadbench.errors import ConfigError, InputError
-from dyadbench.synth.gaze import make_gaze_sessions, write_gaze_split
+from dyadbench.synth.gaze import make_gaze_sessions
+from dyadbench.synth.gaze_writer import update_index, write_gaze_split
 
 
 @pytest.fixture(scope="module")
@@ -66,7 +68,7 @@ def make_root(tmp_path, sessions):
     """sessions: name -> (motion, kwargs); all in split test."""
     for name, (motion, kw) in sessions.items():
         write_session(tmp_path / "test", name, motion, **kw)
-    gz.update_index(tmp_path, "test", [(n, kw.get("speaker", "a")) for n, (m, kw) in sessions.items()])
+    update_index(tmp_path, "test", [(n, kw.get("speaker", "a")) for n, (m, kw) in sessions.items()])
     return tmp_path
 
 
@@ -128,12 +130,12 @@ def test_synthetic_split_is_generated_once_into_the_cache(tmp_path, monkeypatch)
     monkeypatch.setattr("dyadbench.synth.gaze.DEFAULT_SESSIONS", {"ood": 2})
     monkeypatch.setattr("dyadbench.synth.gaze.DEFAULT_DURATION_S", 6.0)
     monkeypatch.setenv("DYADBENCH_CACHE", str(tmp_path))
-    source = gz.open_synthetic_split(None, "ood")
+    source = open_synthetic_split(None, "ood")
     assert source.dataset == "synthetic-gaze" and str(source.root).startswith(str(tmp_path))
     assert source.clip_ids() == ["ood000_ood1", "ood001_ood2"]
     marker = source.root / "ood" / ".complete.json"
     stamp = marker.stat().st_mtime_ns
-    again = gz.open_synthetic_split(None, "ood")
+    again = open_synthetic_split(None, "ood")
     assert again.clip_ids() == source.clip_ids() and marker.stat().st_mtime_ns == stamp
     with pytest.raises(ConfigError, match="unknown synthetic gaze split"):
-        gz.open_synthetic_split(None, "dev")
+        open_synthetic_split(None, "dev")

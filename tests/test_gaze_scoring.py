@@ -10,7 +10,8 @@ from scipy.ndimage import gaussian_filter1d
 from dyadbench.cli import cli
 from dyadbench.scoring.gaze import GazeSuiteConfig, score_arrays
 from dyadbench.scoring.report import ScoreItem
-from dyadbench.synth.gaze import make_gaze_sessions, write_gaze_split
+from dyadbench.synth.gaze import make_gaze_sessions
+from dyadbench.synth.gaze_writer import write_gaze_split
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from dyadbench.datasets.base import InMemorySource
 from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import ConfigError
 from dyadbench.results import EvalResult, load_result, result_files
-from dyadbench.synth.gaze import write_gaze_split
+from dyadbench.synth.gaze_writer import write_gaze_split
 from tests.hostile_cli import dyadbench, error_line, write_dialogues
 from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
 

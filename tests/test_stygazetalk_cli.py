@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from dyadbench.cli import cli
-from dyadbench.synth.gaze import write_gaze_split
+from dyadbench.synth.gaze_writer import write_gaze_split
 from models.stygazetalk.checkpoints import load_style_model, load_system
 
 pytestmark = pytest.mark.slow  # trains twice and runs two evals (~30 s on an idle 2-core machine)

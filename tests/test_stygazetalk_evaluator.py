@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 import torch
 
+from dyadbench.protocol.interface import ModelInfo
+from dyadbench.protocol.runner import suite_options
 from dyadbench.scoring.gaze import score_arrays
 from dyadbench.scoring.report import ScoreItem
 from dyadbench.synth.gaze import make_gaze_session
@@ -52,3 +54,12 @@ def test_a_user_checkpoint_gets_a_digest_version(tmp_path):
     ev = load_style_evaluator(path, hop=10)
     digest = hashlib.sha256(path.read_bytes()).hexdigest()
     assert ev.version == f"tiny-se32@{digest[:12]}" and ev.hop == 10 and ev.digest == digest
+
+
+@pytest.mark.parametrize("seed_frames,skip", [(0, 50), (75, 75)])
+def test_a_models_gaze_run_scores_style_with_the_registered_evaluator(seed_frames, skip):
+    # the runner asks the gaze suite (dyadbench.scoring.gaze.model_options), which loads the registry's
+    # evaluator: the shipped file, and at least the suite's 50-frame seed window skipped
+    options = suite_options("gaze", ModelInfo(name="m", layout="gaze7", seed_frames=seed_frames))
+    assert options["style_encoder"].digest == SHIPPED_DIGEST and options["config"].skip_frames == skip
+    assert suite_options("dualtalk", ModelInfo(name="m")) == {}

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 import torch
 
-from dyadbench.datasets.gaze import write_session
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.causality import check_causal
 from dyadbench.protocol.config import ProtocolConfig
@@ -16,6 +15,7 @@ from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.registry import MODELS
 from dyadbench.synth.gaze import make_gaze_session
+from dyadbench.synth.gaze_writer import write_session
 from dyadbench.training.checkpoint import save_checkpoint
 from models.stygazetalk.checkpoints import (load_style_model, load_system, save_style_model, save_system,
                                             system_from_style)

@@ -1,4 +1,7 @@
-"""The dyadbench gaze–head session layout, its adapter, validator and the embedded synthetic sessions.
+"""The dyadbench gaze–head session layout: its adapter and validator.
+
+The synthetic sessions are written by :mod:`dyadbench.synth.gaze_writer` and served as the
+'synthetic-gaze' dataset by :mod:`dyadbench.datasets.synthetic_gaze`.
 
 On-disk layout (one speaker per session; HAGE-style recordings, or the synthetic generator's output)::
 
@@ -28,47 +31,26 @@ Reading a session (:func:`open_split`):
 from __future__ import annotations
 
 import csv
-import io
-import sys
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from dyadbench import atomic
 from dyadbench.arrays import check_motion, check_values, load_npz
 from dyadbench.datasets.base import DEFAULT_SPLIT, ClipSource, DyadicClip, Participant, split_folder_mismatch
 from dyadbench.datasets.validation import ValidationReport
-from dyadbench.datasets.wav import read_wav, write_wav
+from dyadbench.datasets.wav import read_wav
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, GAZE7, SAMPLE_RATE
-from dyadbench.paths import cache_dir
 
 INDEX = "splits.csv"
 INDEX_COLUMNS = ("session", "speaker", "split")
 PARTICIPANT = "subject"
 ANGLE_LIMIT_DEG = 40.0
 MIN_SEGMENT_FRAMES = 75
-SYNTHETIC_VERSION = 1
-SYNTHETIC_SEED = 0
 
 
 # --- files ---------------------------------------------------------------------------------------------
-
-def write_session(split_dir: Path, clip: DyadicClip) -> Path:
-    """Write a single-participant gaze7 clip as ``<split_dir>/<clip_id>.npz`` + ``.wav`` (atomically)."""
-    if clip.layout != GAZE7.name or len(clip.participants) != 1:
-        raise InputError(clip.clip_id, "the gaze-head layout stores single-participant gaze7 clips")
-    p = clip.participants[0]
-    extra = {}
-    speaking = clip.meta.get("speaking", {}).get(p.name)
-    if speaking is not None:
-        extra["speaking"] = np.asarray(speaking, dtype=bool)
-    npz = atomic.save_npz(Path(split_dir) / f"{clip.clip_id}.npz", motion=np.asarray(p.motion, np.float32),
-                          fps=np.float64(clip.fps), speaker=np.str_(p.identity or ""), **extra)
-    write_wav(Path(split_dir) / f"{clip.clip_id}.wav", p.audio, clip.sample_rate)
-    return npz
-
 
 def read_index(root: Path) -> list[dict]:
     """Rows of ``<root>/splits.csv`` (session, speaker, split); InputError naming the file when malformed."""
@@ -87,19 +69,6 @@ def read_index(root: Path) -> list[dict]:
     if len(set(sessions)) != len(sessions):
         raise InputError(path, "a session is listed twice")
     return rows
-
-
-def update_index(root: Path, split: str, sessions: list[tuple[str, str]]) -> Path:
-    """Replace ``split``'s rows of ``<root>/splits.csv`` with ``sessions`` [(session, speaker)]; keep the rest."""
-    root = Path(root)
-    rows = [r for r in read_index(root) if r["split"] != split] if (root / INDEX).is_file() else []
-    rows += [{"session": s, "speaker": spk, "split": split} for s, spk in sessions]
-    rows.sort(key=lambda r: (r["split"], r["session"]))
-    buf = io.StringIO()
-    writer = csv.DictWriter(buf, fieldnames=INDEX_COLUMNS, lineterminator="\n")
-    writer.writeheader()
-    writer.writerows(rows)
-    return atomic.write_text(root / INDEX, buf.getvalue())
 
 
 @dataclass(frozen=True)
@@ -270,33 +239,6 @@ def open_split(root: Path | None, split: str | None) -> GazeSource:
     base, split = resolve_root(Path(root), split)
     source = GazeSource(base, split)
     source.single_split = base != Path(root)
-    return source
-
-
-def synthetic_root() -> Path:
-    """``<cache>/synthetic-gaze-v<gaze generator>.<speech generator>-seed0``: new versions never reuse old files."""
-    from dyadbench.synth.styles import GENERATOR_VERSION
-
-    return cache_dir() / f"synthetic-gaze-v{SYNTHETIC_VERSION}.{GENERATOR_VERSION}-seed{SYNTHETIC_SEED}"
-
-
-def open_synthetic_split(root: Path | None, split: str | None) -> GazeSource:
-    """The embedded synthetic gaze–head sessions: generated on first use into ``root`` (default: the cache)."""
-    from dyadbench.synth.gaze import SPLITS, write_gaze_split
-
-    split = split or DEFAULT_SPLIT
-    if split not in SPLITS:
-        raise ConfigError(f"unknown synthetic gaze split {split!r} (known: {', '.join(SPLITS)})")
-    in_cache = root is None  # the cache's split folders are dyadbench's own: replaced whatever they hold
-    root = synthetic_root() if in_cache else Path(root)
-    marker = root / split / ".complete.json"
-    if not marker.is_file():  # absent, or left by an interrupted older version: (re)write the split whole
-        print(f"dyadbench: generating the synthetic gaze-head {split} split (seed {SYNTHETIC_SEED}) into "
-              f"{root / split} (first use only)", file=sys.stderr)
-        summary = write_gaze_split(root, split=split, seed=SYNTHETIC_SEED, force=in_cache)
-        atomic.write_json(marker, summary)
-    source = GazeSource(root, split)
-    source.dataset = "synthetic-gaze"
     return source
 
 

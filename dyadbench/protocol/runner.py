@@ -232,19 +232,10 @@ def items_digest(suite: str, seed: int, items: list[ScoreItem]) -> str:
 
 
 def suite_options(suite: str, info) -> dict:
-    """Keyword arguments of the suite's ``score_arrays`` that depend on the model.
-
-    The gaze–head suite skips at least the model's seed window (``ModelInfo.seed_frames``, never less
-    than the suite's default) and reports the style cosine error with the frozen, versioned StyGazeTalk
-    style encoder, the same network for every model.
-    """
-    if suite != "gaze":
-        return {}
-    from dyadbench.scoring.gaze import SEED_FRAMES, GazeSuiteConfig
-    from models.stygazetalk.evaluator import load_style_evaluator
-
-    return {"config": GazeSuiteConfig(skip_frames=max(SEED_FRAMES, info.seed_frames)),
-            "style_encoder": load_style_evaluator()}
+    """Keyword arguments of the suite's ``score_arrays`` that depend on the model: the suite module's
+    ``model_options(info)`` where it defines one (:func:`dyadbench.scoring.gaze.model_options`), else none."""
+    model_options = getattr(importlib.import_module(f"dyadbench.scoring.{suite}"), "model_options", None)
+    return model_options(info) if model_options else {}
 
 
 def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int, options: dict | None = None):

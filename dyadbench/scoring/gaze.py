@@ -12,7 +12,8 @@ own BAS is reported beside it (``gt_bas_*``). Sequences whose BAS is undefined (
 of its mean and counted in the notes.
 
 The style cosine error needs a frozen style encoder (:class:`dyadbench.metrics.gaze.StyleEncoder`):
-pass it as ``style_encoder``; without one ``style_ce`` is not reported.
+pass it as ``style_encoder``; without one ``style_ce`` is not reported. A model's run
+(:func:`model_options`) uses the evaluator registered as :data:`STYLE_EVALUATOR`.
 
 Uncertainty (:mod:`dyadbench.uncertainty`, resampling sessions): the means over sequences get a
 cluster-robust standard error and a bootstrap CI; the pooled columns (fix/saccade ratio, CompScore, for
@@ -34,6 +35,7 @@ from dyadbench.errors import InputError
 from dyadbench.metrics import beats, gaze
 from dyadbench.metrics.fixations import fixation_counts
 from dyadbench.motion import FPS, GAZE7
+from dyadbench.registry import EVALUATORS
 from dyadbench.scoring import policy
 from dyadbench.scoring.parallel import map_items
 from dyadbench.scoring.predictions import open_predictions
@@ -42,6 +44,9 @@ from dyadbench.seeding import rng
 
 SUITE = "gaze"
 SEED_FRAMES = 50  # M = 2 s: StyGazeTalk's seed window, excluded for every model
+#: the frozen, versioned style encoder every model's ``style_ce`` is computed with (a name in
+#: :data:`dyadbench.registry.EVALUATORS`; the reference model that provides it is imported only when used)
+STYLE_EVALUATOR = "stygazetalk-style"
 ERROR_METRICS = {"mae": gaze.mae, "vel": gaze.vel, "vel_abs": gaze.vel_abs, "mee": gaze.mee,
                  "mee_frame": gaze.mee_frame}
 BAS_GROUPS = ("all", "gaze", "head")
@@ -230,6 +235,14 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0, config
     return _score(items, jobs=jobs, seed=seed, config=config, style_encoder=style_encoder,
                   coverage={"expected": len(items), "missing": [], "extra": []}, inputs={"pred": None, "gt": None},
                   warnings=[])
+
+
+def model_options(info) -> dict:
+    """:func:`score_arrays` keyword arguments for a model's run: skip at least the model's seed window
+    (``ModelInfo.seed_frames``, never less than :data:`SEED_FRAMES`) and score ``style_ce`` with the
+    :data:`STYLE_EVALUATOR`, the same network for every model."""
+    return {"config": GazeSuiteConfig(skip_frames=max(SEED_FRAMES, info.seed_frames)),
+            "style_encoder": EVALUATORS.load(STYLE_EVALUATOR)()}
 
 
 def _score(items: list[ScoreItem], *, jobs: int, seed: int, config: GazeSuiteConfig | None,

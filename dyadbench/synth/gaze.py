@@ -31,19 +31,15 @@ deterministic from ``seed``.
 
 from __future__ import annotations
 
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
-from pathlib import Path
 
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
-from tqdm import tqdm
 
 from dyadbench.datasets.base import DyadicClip, Participant
 from dyadbench.errors import ConfigError
 from dyadbench.motion import FPS, SAMPLE_RATE
 from dyadbench.seeding import rng
-from dyadbench.synth.generation import split_folder
 from dyadbench.synth.signals import block_mean, lowpass, ou_process
 from dyadbench.synth.speech import speech_signals
 from dyadbench.synth.styles import Style, style_pool
@@ -315,42 +311,3 @@ def make_gaze_sessions(split: str, n: int | None = None, seed: int = 0, duration
     """``n`` sessions of ``split`` in memory (default: the split's size in :data:`DEFAULT_SESSIONS`)."""
     n = DEFAULT_SESSIONS.get(split, 8) if n is None else n
     return [make_gaze_session(split, i, seed, duration_s, preset) for i in range(n)]
-
-
-def _write_one(args: tuple) -> dict:
-    from dyadbench.datasets.gaze import write_session
-
-    folder, split, index, seed, duration_s, preset = args
-    clip = make_gaze_session(split, index, seed, duration_s, preset)
-    write_session(Path(folder), clip)
-    return {"session": clip.clip_id, "speaker": clip.participants[0].identity, "split": split,
-            "frames": clip.num_frames}
-
-
-def write_gaze_split(out: Path, *, split: str, clips: int | None = None, seed: int = 0, jobs: int = 1,
-                     duration_s: float | None = None, preset: str = "hage-like", force: bool = False) -> dict:
-    """Write ``clips`` synthetic sessions of ``split`` in the gaze–head layout under ``out``.
-
-    Files: ``out/<split>/<session>.npz`` + ``.wav`` and ``out/splits.csv`` (rows of other splits kept).
-    The split folder is replaced whole when complete (:func:`dyadbench.synth.generation.split_folder`;
-    ``force``: even when it holds files the generator did not write), then the index is updated.
-    Returns a summary (sessions, frames, seconds, seed, preset).
-    """
-    from dyadbench.datasets.gaze import update_index
-
-    out = Path(out)
-    n = DEFAULT_SESSIONS.get(split, 8) if clips is None else clips
-    if split not in SPLITS:
-        raise ConfigError(f"unknown gaze split {split!r} (known: {', '.join(SPLITS)})")
-    with split_folder(out / split, "gaze", force) as staging:
-        tasks = [(str(staging), split, i, seed, duration_s, preset) for i in range(n)]
-        desc = f"gaze {split}"
-        if jobs > 1 and n > 1:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                rows = list(tqdm(pool.map(_write_one, tasks), total=n, desc=desc, leave=False))
-        else:
-            rows = [_write_one(t) for t in tqdm(tasks, desc=desc, leave=False)]
-    update_index(out, split, [(r["session"], r["speaker"]) for r in rows])
-    frames = sum(r["frames"] for r in rows)
-    return {"layout": "gaze", "split": split, "sessions": n, "frames": frames, "seconds": frames / FPS,
-            "seed": seed, "preset": preset, "root": str(out)}
