@@ -166,7 +166,10 @@ class Checker:
         key = (run.dataset, run.root, run.split, run.clips)
         if key not in self._data:
             self.available(run.dataset, run.root, run.split)
-            source = open_split(run.dataset, run.root, run.split)
+            try:
+                source = open_split(run.dataset, run.root, run.split)
+            except (ConfigError, InputError) as exc:  # e.g. an in-memory split, or a folder changed since
+                raise Unavailable(f"its data cannot be opened here: {exc}") from None
             ids = source.clip_ids()
             self._data[key] = source, split_digest(source, ids if run.clips is None else ids[:run.clips])
         return self._data[key]

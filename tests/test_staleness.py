@@ -101,6 +101,15 @@ def test_a_vanished_data_folder_leaves_the_row_unverified(swept, tmp_path):
     assert verdict.reasons == (f"its data folder {tmp_path / 'gone' / 'test'} no longer exists",)
 
 
+def test_data_no_adapter_can_open_leaves_the_row_unverified(swept, tmp_path):
+    def in_memory(d: dict) -> None:  # what evaluate() records for an in-memory split
+        d["data"]["dataset"] = d["configuration"]["dataset"] = "handmade"
+        d["data"]["root"] = d["configuration"]["root"] = None
+    verdict = Checker().check(edited(swept / "n0" / "zero.json", tmp_path / "zero.json", in_memory))
+    assert verdict.status == UNVERIFIED
+    assert verdict.reasons[0].startswith("its data cannot be opened here: unknown dataset 'handmade'")
+
+
 def stale_copy(swept: Path, tmp_path: Path) -> Path:
     """A results folder holding the sweep's four files, mean-frame at n=0 made stale (another weights digest)."""
     folder = tmp_path / "results"
