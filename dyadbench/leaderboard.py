@@ -8,7 +8,7 @@
   from).
 - :func:`wide_table`: the paper layout of one suite (the printed columns its module declares, in the
   paper's order, scaled as printed: :mod:`dyadbench.metrics.columns`), one row per model and setting,
-  with ``rank_group`` (:func:`prediction_set`: the set of predictions the row was scored on),
+  with ``rank_group`` (:func:`prediction_sets`: the set of predictions the row was scored on),
   ``rank`` by the suite's primary column in the direction it declares (e.g. DualTalk FD exp ascending,
   gaze SimScore descending) among non-oracle rows of the same source/dataset/split/protocol/context
   **and** prediction set, and ``items`` (predictions scored; empty for published rows). Rows scored on
@@ -59,15 +59,34 @@ _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
 PUBLISHED = "published"
 
 
-def prediction_set(items: object, clips: object, digest: object) -> str:
+def prediction_set(items: object, clips: object, digest: object = None) -> str:
     """The label of the set of predictions a row was scored on: ``"1066 items / 533 clips"``, with
-    ``", data <first 12 hex digits>"`` when the result records the evaluated clips' content digest;
-    ``"published"`` for transcribed rows (no items recorded). Rows are ranked only among rows with the
-    same label (same items and clips, and the same digest, an unrecorded digest counting as its own)."""
+    ``", data <first 12 hex digits>"`` (or ``", data unrecorded"``) when ``digest`` is given: see
+    :func:`prediction_sets`; ``"published"`` for transcribed rows (no items recorded)."""
     if pd.isna(items):
         return PUBLISHED
     label = f"{int(items)} items / {int(clips)} clips" if pd.notna(clips) else f"{int(items)} items"
-    return label + (f", data {str(digest)[:12]}" if isinstance(digest, str) and digest else "")
+    if digest is None:
+        return label
+    return label + f", data {str(digest)[:12] if _recorded(digest) else 'unrecorded'}"
+
+
+def _recorded(digest: object) -> bool:
+    return isinstance(digest, str) and bool(digest)
+
+
+def prediction_sets(part: pd.DataFrame) -> list[str]:
+    """:func:`prediction_set` of every row of a long table. Rows of one setting with the same items and
+    clips are one set, unless they record different data digests (the evaluated clips' content,
+    :mod:`dyadbench.provenance`): then each recorded digest is its own set, and rows recording none form
+    one more (``data unrecorded``). A row that records no digest is thus ranked with rows that do as long
+    as nothing recorded contradicts it; ``dyadbench leaderboard`` warns about rows whose provenance no
+    longer matches the current data (:mod:`dyadbench.staleness`)."""
+    key = [part[c].astype(str) for c in SETTING + ["items", "clips"]]
+    digests = part["digest"].where(part["digest"].map(_recorded))
+    split = digests.groupby(key, dropna=False).transform("nunique") > 1
+    return [prediction_set(items, clips, digest if several else None)
+            for items, clips, digest, several in zip(part["items"], part["clips"], part["digest"], split)]
 
 
 def _component(metric: str) -> str:
@@ -223,7 +242,7 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "
         return pd.DataFrame(columns=head + columns)
     part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
                        model=_variant_models(part), flags=part["flags"].fillna(""),
-                       rank_group=[prediction_set(*r) for r in zip(part["items"], part["clips"], part["digest"])])
+                       rank_group=prediction_sets(part))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
     for f in spread.MODES[uncertainty]:  # <col>_se or <col>_ci_low/_ci_high (dyadbench.leaderboard_uncertainty)
         extra = part.pivot_table(index=index, columns="metric", values=f, aggfunc="first")
@@ -298,7 +317,7 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
     lines.append(r"\end{tabular}")
     if several:
         lines.append(r"% Rows are ranked, and best values bolded, only among rows scored on the same predictions "
-                     r"(same items, clips and data digest): each such set is headed ``ranked among''.")
+                     r"(same items and clips, no conflicting data digest): each such set is headed ``ranked among''.")
     if wide["oracle"].astype(bool).any():
         lines.append(r"% $^\dagger$ oracle: copies the ground truth; a pipeline check, never ranked.")
     if (wide["flags"] != "").any():

@@ -59,7 +59,7 @@ def test_wide_table_ranks_everyone_but_the_oracle(results_dir):
                                        "flags", "rank_group", "rank"]
     assert list(wide.columns[10:14]) == ["items", "fd_exp", "fd_jaw", "fd_pose"] and wide.columns[-1] == "rpcc_pose"
     assert (wide["flags"] == "").all() and wide["rank_group"].nunique() == 1
-    assert wide["rank_group"][0].startswith("4 items / 2 clips, data ")  # one prediction set, digest recorded
+    assert wide["rank_group"][0] == "4 items / 2 clips"  # one prediction set: one digest, nothing contradicts it
     assert (wide["items"] == 4).all()
     for _, group in wide.groupby("context"):
         ranked = group[~group["oracle"]]

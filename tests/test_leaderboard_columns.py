@@ -134,8 +134,11 @@ def test_gaze_ranks_by_simscore_descending(tmp_path):
 
 
 def test_rows_scored_on_different_predictions_are_never_ranked_together(tmp_path):
+    # 1066 items / 533 clips: two recorded data digests disagree, so each is its own set and the rows that
+    # record none form a third; 40 items / 20 clips: one recorded digest, nothing contradicts it, one set.
     runs = [("full-a", 1066, 533, None, 5.0), ("full-b", 1066, 533, None, 4.0), ("first-20", 40, 20, None, 1.0),
             ("other-20", 40, 20, None, 2.0), ("digested", 1066, 533, "abcdef0123456789", 0.5),
+            ("digested-2", 1066, 533, "0123456789abcdef", 0.7), ("first-20-digested", 40, 20, "fedcba98", 1.5),
             ("oracle", 1066, 533, None, 0.0)]
     for model, items, clips, digest, fd in runs:
         _result(tmp_path, "dualtalk", model, {"fd_exp": fd}, items=items, clips=clips, digest=digest,
@@ -143,13 +146,16 @@ def test_rows_scored_on_different_predictions_are_never_ranked_together(tmp_path
     long = pd.concat([long_table([tmp_path]), paper_rows(PAPER_ROWS)], ignore_index=True)
     wide = wide_table(long)
     ours = wide[wide["source"] == "dyadbench"].set_index("model")
+    unrecorded = "1066 items / 533 clips, data unrecorded"
     assert ours["rank_group"].to_dict() == {
-        "full-b": "1066 items / 533 clips", "full-a": "1066 items / 533 clips", "oracle": "1066 items / 533 clips",
+        "full-b": unrecorded, "full-a": unrecorded, "oracle": unrecorded,
         "digested": "1066 items / 533 clips, data abcdef012345",
-        "first-20": "40 items / 20 clips", "other-20": "40 items / 20 clips"}
+        "digested-2": "1066 items / 533 clips, data 0123456789ab",
+        "first-20": "40 items / 20 clips", "other-20": "40 items / 20 clips",
+        "first-20-digested": "40 items / 20 clips"}
     ranks = ours["rank"].to_dict()
-    order = ("full-b", "full-a", "digested", "first-20", "other-20")
-    assert tuple(ranks[m] for m in order) == (1, 2, 1, 1, 2)
+    order = ("full-b", "full-a", "digested", "digested-2", "first-20", "first-20-digested", "other-20")
+    assert tuple(ranks[m] for m in order) == (1, 2, 1, 1, 1, 2, 3)
     assert pd.isna(ranks["oracle"])
     for _, group in wide[wide["rank"].notna()].groupby(["source", "dataset", "split", "protocol", "context",
                                                         "rank_group"]):
@@ -159,8 +165,9 @@ def test_rows_scored_on_different_predictions_are_never_ranked_together(tmp_path
     tex = latex_table(wide[wide["source"] == "dyadbench"])
     lines = tex.splitlines()
     heads = [line for line in lines if line.startswith(r"\multicolumn") and "ranked among: " in line]
-    assert [h.split("ranked among: ")[1].split("}")[0] for h in heads] == [
-        "1066 items / 533 clips", "1066 items / 533 clips, data abcdef012345", "40 items / 20 clips"]
+    assert sorted(h.split("ranked among: ")[1].split("}")[0] for h in heads) == sorted([
+        unrecorded, "1066 items / 533 clips, data abcdef012345", "1066 items / 533 clips, data 0123456789ab",
+        "40 items / 20 clips"])
     bold = [line.split(" &")[0] for line in lines if r"\textbf" in line]
     assert bold == ["full-b", "first-20"]  # best of each set with more than one ranked row
     assert any(line.startswith("% Rows are ranked") for line in lines)
