@@ -37,6 +37,13 @@ def write_dialogues(folder: Path, split: str, n: int, seed: int = 0) -> Path:
     return folder
 
 
+def write_root(root: Path, train: int, test: int) -> Path:
+    """A DualTalk root holding ``train/`` and ``test/`` with that many short dialogues each."""
+    write_dialogues(root / "train", "train", train)
+    write_dialogues(root / "test", "test", test)
+    return root
+
+
 def error_line(output: str) -> str:
     """The one ``error: ...`` line of a refused command (and no traceback)."""
     assert "Traceback" not in output, output

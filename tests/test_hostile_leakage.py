@@ -21,7 +21,7 @@ from dyadbench.datasets.dualtalk_files import load_gt_npz
 from dyadbench.errors import ConfigError
 from dyadbench.results import EvalResult, load_result, result_files
 from dyadbench.synth.gaze_writer import write_gaze_split
-from tests.hostile_cli import dyadbench, error_line, write_dialogues
+from tests.hostile_cli import dyadbench, error_line, write_dialogues, write_root
 from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
 
 REPO = Path(__file__).resolve().parents[1]
@@ -29,10 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("dualtalk")
-    write_dialogues(root / "train", "train", 2)
-    write_dialogues(root / "test", "test", 2)
-    return root
+    return write_root(tmp_path_factory.mktemp("dualtalk"), train=2, test=2)
 
 
 def eval_args(model: str, out: Path, *options) -> list:

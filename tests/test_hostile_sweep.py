@@ -13,16 +13,13 @@ from pathlib import Path
 import pytest
 
 from dyadbench.results import load_result
-from tests.hostile_cli import dyadbench, write_dialogues
+from tests.hostile_cli import dyadbench, write_dialogues, write_root
 from tests.protocol_clips import isolated_cache  # noqa: F401
 
 
 @pytest.fixture(scope="module")
 def root(tmp_path_factory) -> Path:
-    root = tmp_path_factory.mktemp("dualtalk")
-    write_dialogues(root / "train", "train", 2)
-    write_dialogues(root / "test", "test", 3)
-    return root
+    return write_root(tmp_path_factory.mktemp("dualtalk"), train=2, test=3)
 
 
 @pytest.fixture()

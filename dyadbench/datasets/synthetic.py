@@ -33,6 +33,7 @@ from dyadbench.errors import InputError
 from dyadbench.features.activity import segments_mask
 from dyadbench.motion import FPS
 from dyadbench.paths import cache_dir
+from dyadbench.synth.generation import generated_split
 from dyadbench.synth.styles import GENERATOR_VERSION
 from dyadbench.synth.writers import MARKER, default_size, generator_digest, write_dualtalk_split
 
@@ -55,17 +56,9 @@ def _read_marker(folder: Path, split: str) -> dict | None:
     return marker if all(marker.get(k) == v for k, v in expected.items()) else None
 
 
-def _is_generated(folder: Path) -> bool:
-    """True when ``folder`` holds a split this generator wrote (any version): safe to replace."""
-    try:
-        return json.loads((folder / MARKER).read_text()).get("generator") == "dyadbench.synth"
-    except (OSError, ValueError, AttributeError):
-        return False
-
-
 def _generate(base: Path, split: str) -> None:
     target = base / split
-    stale = _is_generated(target)
+    stale = generated_split(target)
     if target.exists() and not stale and any(target.iterdir()):
         raise InputError(target, f"exists but holds no {MARKER} from the synthetic generator; refusing to "
                                  "overwrite it (pass an empty or new folder, or use --dataset dualtalk to read it)")

@@ -17,22 +17,19 @@ Clip ``i`` depends only on (seed, split, i), so the files do not depend on ``job
 from __future__ import annotations
 
 import hashlib
-from concurrent.futures import ProcessPoolExecutor
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-from tqdm import tqdm
 
 from dyadbench import atomic
 from dyadbench.datasets.base import DyadicClip
 from dyadbench.datasets.dualtalk_files import write_gt_npz
 from dyadbench.datasets.wav import write_wav
-from dyadbench.errors import ConfigError
 from dyadbench.motion import FPS
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth.corpus import make_clip
-from dyadbench.synth.generation import SUMMARY, split_folder
+from dyadbench.synth.generation import SUMMARY, clip_count, map_tasks, split_folder
 from dyadbench.synth.styles import GENERATOR_VERSION, split_pool
 
 MARKER = SUMMARY
@@ -108,20 +105,12 @@ def write_dualtalk_split(out: str | Path, *, split: str = "test", clips: int | N
     ``force``: even when it holds files the generator did not write). Returns the summary also written
     to ``out/<split>/synthetic.json``.
     """
-    n = default_size(split) if clips is None else int(clips)
-    if n < 1:
-        raise ConfigError(f"--clips must be at least 1, got {n}")
-    if jobs < 1:
-        raise ConfigError(f"--jobs must be at least 1, got {jobs}")
+    n = clip_count(clips, default_size(split), jobs)
     folder = Path(out) / split
     with split_folder(folder, "dualtalk", force) as staging:
         tasks = [(staging, split, i, seed) for i in range(n)]
-        bar = dict(total=n, desc=f"synth dualtalk/{split}", unit="clip", disable=not progress)
-        if jobs == 1:
-            results = [_write_one(t) for t in tqdm(tasks, **bar)]
-        else:
-            with ProcessPoolExecutor(max_workers=jobs) as pool:
-                results = list(tqdm(pool.map(_write_one, tasks, chunksize=4), **bar))
+        results = map_tasks(_write_one, tasks, jobs=jobs, desc=f"synth dualtalk/{split}", unit="clip",
+                            progress=progress, chunksize=4)
         records = dict(sorted(results))
         frames = sum(r["frames"] for r in records.values())
         summary = {"layout": "dualtalk", "generator": "dyadbench.synth", "version": GENERATOR_VERSION,
