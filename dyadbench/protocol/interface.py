@@ -64,6 +64,13 @@ class StreamContext:
     num_turns: int  # turns the protocol will request for this stream
     seed: int  # per-stream seed derived from the run seed, clip and agent
     agent_identity: str | None = None
+    #: How models that normalise waveforms (wav2vec 2.0 front ends) get their statistics: "window" (causal,
+    #: default: the audio handed over in each turn) or "clip" (the released TIMAR/DualTalk code: the whole
+    #: clip's waveform, which reads future audio; such runs are recorded as not strictly causal).
+    speech_norm: str = "window"
+    #: (mean, variance) of the agent's / user's whole-clip waveform; set only when ``speech_norm == "clip"``.
+    agent_audio_stats: tuple[float, float] | None = None
+    user_audio_stats: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)
