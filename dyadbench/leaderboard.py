@@ -297,20 +297,20 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
     prediction set in bold; a setting with several prediction sets heads each with its label."""
     specs = declared(suite)
     columns = table_columns(suite, [c for c in wide.columns if c not in SETTING + WIDE_TEXT])
-    header = " & ".join(["Model"] + [_latex_header(c, specs) for c in columns])
+    header = " & ".join(["Model"] + [latex_header(c, specs) for c in columns])
     lines = [r"\begin{tabular}{l" + "r" * len(columns) + "}", r"\toprule", header + r" \\", r"\midrule"]
     several = False
     for setting, block in wide.groupby(SETTING, sort=False):
         source, dataset, split, protocol, context = setting
         label = f"{dataset} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
-        lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{_escape(label)}}}}} \\")
+        lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{latex_escape(label)}}}}} \\")
         sets = list(dict.fromkeys(block["rank_group"]))
         several = several or len(sets) > 1
         for rank_group in sets:
             group = block[block["rank_group"] == rank_group]
             if len(sets) > 1:
                 lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\quad ranked among: "
-                             rf"{_escape(rank_group)}}} \\")
+                             rf"{latex_escape(rank_group)}}} \\")
             lines += _latex_rows(group, columns, specs, digits)
         lines.append(r"\midrule")
     lines[-1] = r"\bottomrule"
@@ -341,7 +341,7 @@ def _latex_rows(group: pd.DataFrame, columns: list[str], specs: SuiteColumns | N
             best[c] = values.max() if higher else values.min()
     lines = []
     for _, row in group.iterrows():
-        name = _escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
+        name = latex_escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
             r"$^\ddagger$" if row["flags"] else "")
         cells = [name]
         for c in columns:
@@ -354,21 +354,22 @@ def _latex_rows(group: pd.DataFrame, columns: list[str], specs: SuiteColumns | N
     return lines
 
 
-def _latex_header(key: str, specs: SuiteColumns | None) -> str:
+def latex_header(key: str, specs: SuiteColumns | None) -> str:
     r"""The declared header with its direction arrow and scale (e.g. ``FD jaw$\downarrow$ $\times10^{3}$``,
     ``saccade (\%)``); an undeclared key as it is."""
     spec = None if specs is None else specs.spec(key)
     if spec is None:
-        return _escape(key)
+        return latex_escape(key)
     arrow = {True: r"$\uparrow$", False: r"$\downarrow$", None: ""}[spec.higher_is_better]
     if spec.unit is not None:
-        factor = f" ({_escape(spec.unit)})"
+        factor = f" ({latex_escape(spec.unit)})"
     else:
         factor = "" if spec.scale == 1.0 else rf" $\times10^{{{int(round(math.log10(spec.scale)))}}}$"
-    return f"{_escape(spec.header)}{arrow}{factor}"
+    return f"{latex_escape(spec.header)}{arrow}{factor}"
 
 
-def _escape(text: str) -> str:
+def latex_escape(text: str) -> str:
+    """``text`` for a LaTeX text cell: backslash, ``&``, ``%``, ``_`` and ``#`` escaped."""
     for a, b in (("\\", r"\textbackslash{}"), ("&", r"\&"), ("%", r"\%"), ("_", r"\_"), ("#", r"\#")):
         text = text.replace(a, b)
     return text
