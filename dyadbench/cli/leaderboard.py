@@ -9,6 +9,7 @@ import click
 from dyadbench.leaderboard import long_table, table_texts, write_tables
 from dyadbench.leaderboard_uncertainty import MODES
 from dyadbench.outputs import check_folder
+from dyadbench.paper_table import table1_texts
 from dyadbench.results import result_files
 from dyadbench.staleness import STALE, UNVERIFIED, Checker, check_files
 
@@ -29,8 +30,12 @@ PAPER_ROWS = Path(__file__).resolve().parents[2] / "leaderboards" / "paper_timar
               help="Add each result's recorded uncertainty to the wide tables: se = <col>_se columns "
                    "(value ± se in LaTeX), ci = <col>_ci_low/<col>_ci_high (value [low, high] in LaTeX); "
                    "empty for results recorded without it and for published rows.")
+@click.option("--table1", is_flag=True,
+              help="Also write TIMAR's Table 1 layout (dyadbench.paper_table): OUT/table1_<source>_<dataset>"
+                   ".csv/.md/.tex for the result files and for the published rows; rows without a result are "
+                   "shown as missing and listed on stderr.")
 def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], no_paper: bool, latex: bool,
-                uncertainty: str) -> None:
+                uncertainty: str, table1: bool) -> None:
     """Build leaderboards from RESULTS (result files or folders; default: results/).
 
     \b
@@ -43,6 +48,10 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
                               (rank_group: items, clips, data digest); oracle rows are marked and never
                               ranked
       OUT/<suite>_wide.tex    with --latex
+      OUT/table1_*.csv/.md/.tex  with --table1: TIMAR's Table 1 layout (contexts offline, n = 0, 3, 7 on
+                              test and ood; dualtalk, timar, timar-stream and the relative change of each
+                              TIMAR row against dualtalk per column), and the same for the published
+                              rows; written with the set, never removed by a build without --table1
     Numbers come only from result files written by `dyadbench eval` / `dyadbench sweep` and from the
     transcribed published rows.
     Each result file's provenance is compared with the current code and data (dyadbench.staleness):
@@ -54,13 +63,17 @@ def leaderboard(results: tuple[Path, ...], out: Path, paper: tuple[Path, ...], n
     sources = list(results) or [Path("results")]
     papers = [] if no_paper else (list(paper) or ([PAPER_ROWS] if PAPER_ROWS.is_file() else []))
     long = long_table(sources, papers)
-    written, removed = write_tables(out, table_texts(long, latex, uncertainty))
+    tables = table_texts(long, latex, uncertainty)
+    table1, missing = table1_texts(long) if table1 else ({}, [])
+    written, removed = write_tables(out, {**tables, **table1})
     n_dyad = int((long["source"] == "dyadbench").sum())
     click.echo(f"{n_dyad} dyadbench rows, {len(long) - n_dyad} published rows")
     for path in written:
         click.echo(f"wrote {path}")
     for path in removed:
         click.echo(f"removed {path} (not part of this build)")
+    for row in missing:
+        click.echo(f"missing Table 1 row (shown as missing): {row}", err=True)
     warn_stale(sources)
 
 
