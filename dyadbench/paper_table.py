@@ -2,8 +2,9 @@
 of TIMAR against DualTalk per column, as the paper marks it.
 
 One table per source (``dyadbench``: result files; ``paper``: the transcribed published rows) and
-dataset, with a block per split (test, ood) and in each the context rows ``offline`` (the DualTalk rows
-only: the published DualTalk protocol) and streaming n = 0, 3, 7. At each streaming context the
+dataset, with a block per split (test, ood) and in each the context rows ``offline`` (DualTalk only, the
+published DualTalk protocol: dyadbench ``dualtalk-offline``; paper DualTalk-official and
+DualTalk-retrained from its Table 2) and streaming n = 0, 3, 7. At each streaming context the
 reference rows come first (dyadbench ``dualtalk``; paper DualTalk-official, DualTalk-retrained), then
 each compared row (``timar``, ``timar-stream``; paper TIMAR), each followed by its change against the
 first reference row of the same split and context, for every printed column of the DualTalk suite
@@ -56,27 +57,30 @@ FLAGGED, NONCAUSAL = "‡", "§"
 
 @dataclass(frozen=True)
 class Layout:
-    """The rows of one source's Table 1: ``references`` (DualTalk; changes are measured against the
-    first) at every context, ``compared`` (TIMAR) at the streaming contexts."""
+    """The rows of one source's Table 1: ``offline`` (DualTalk over the whole clip) at the offline context;
+    ``references`` (DualTalk; changes are measured against the first), then ``compared`` (TIMAR) at each
+    streaming context."""
 
+    offline: tuple[str, ...]
     references: tuple[str, ...]
     compared: tuple[str, ...]
 
-    @property
-    def models(self) -> tuple[str, ...]:
-        return self.references + self.compared
+    def rows(self, context: str) -> tuple[str, ...]:
+        """The models shown at ``context``, in order."""
+        return self.offline if context == OFFLINE else self.references + self.compared
 
 
-LAYOUTS = {"dyadbench": Layout(("dualtalk",), ("timar", "timar-stream")),
-           "paper": Layout(("DualTalk-official", "DualTalk-retrained"), ("TIMAR",))}
+LAYOUTS = {"dyadbench": Layout(("dualtalk-offline",), ("dualtalk",), ("timar", "timar-stream")),
+           "paper": Layout(("DualTalk-official", "DualTalk-retrained"), ("DualTalk-official", "DualTalk-retrained"),
+                           ("TIMAR",))}
 
 
 def table1_runs(long: pd.DataFrame) -> pd.DataFrame:
     """One row per Table 1 run of the long table: :data:`KEY`, ``marks``, ``file`` and the printed
     columns (scaled). InputError naming the files when two runs fill the same row."""
     layouts = [LAYOUTS.get(s) for s in long["source"]]
-    keep = pd.Series([lay is not None and m in lay.models for lay, m in zip(layouts, long["model"])],
-                     index=long.index, dtype=bool)
+    keep = pd.Series([lay is not None and m in lay.rows(OFFLINE if p == OFFLINE else "0")
+                      for lay, m, p in zip(layouts, long["model"], long["protocol"])], index=long.index, dtype=bool)
     part = long[(long["suite"] == SUITE) & keep & _default_settings(long)]
     context = part["context"].astype("Int64").astype(str)
     part = part.assign(context=context.where(part["protocol"] != OFFLINE, OFFLINE), flags=part["flags"].fillna(""),
@@ -126,10 +130,9 @@ def table1_frame(long: pd.DataFrame) -> tuple[pd.DataFrame, list[str]]:
         layout = LAYOUTS[source]
         for split in SPLITS:
             for context in CONTEXTS:
-                models = layout.references if context == OFFLINE else layout.models
                 where = {"source": source, "dataset": dataset, "split": split, "context": context}
                 reference = found.get((source, dataset, split, context, layout.references[0]))
-                for model in models:
+                for model in layout.rows(context):
                     run = found.get((source, dataset, split, context, model))
                     if run is None:
                         missing.append(f"{source} {dataset} {split} {context} {model}")

@@ -51,7 +51,9 @@ def results(tmp_path):
     write_result(root / "test/n0", "dualtalk", DUALTALK)
     write_result(root / "test/n0", "timar", TIMAR)
     write_result(root / "test/n0", "timar", {k: 99.0 for k in TIMAR}, cfg_scale=1.5, name="timar@cfg1.5")
-    write_result(root / "test/offline", "dualtalk", {k: 2 * v for k, v in DUALTALK.items()}, protocol="offline")
+    write_result(root / "test/n0", "dualtalk-offline", {k: 2 * v for k, v in DUALTALK.items()}, protocol="offline")
+    write_result(root / "test/n0", "dualtalk", {k: 3 * v for k, v in DUALTALK.items()}, protocol="offline",
+                 name="dualtalk-as-offline")  # not a Table 1 row: dualtalk is the streaming model
     return root
 
 
@@ -73,9 +75,10 @@ def test_relative_change_and_verdict_per_column(results):
     assert change["versus"] == "dualtalk"
     timar = _rows(ours, "test", "0", "timar", "value")  # the default run, publication scaling; cfg1.5 stays out
     assert timar["fd_exp"] == 8.0 and timar["mse_jaw"] == pytest.approx(2.5) and timar["rpcc_exp"] == pytest.approx(6.0)
-    offline = _rows(ours, "test", "offline", "dualtalk", "value")
-    assert offline["fd_exp"] == 20.0 and offline["file"].endswith("offline/dualtalk.json")
-    assert not (ours["context"].eq("offline") & ours["model"].str.startswith("timar")).any()  # DualTalk only
+    offline = _rows(ours, "test", "offline", "dualtalk-offline", "value")
+    assert offline["fd_exp"] == 20.0 and offline["file"].endswith("n0/dualtalk-offline.json")
+    assert set(ours.loc[ours["context"] == "offline", "model"]) == {"dualtalk-offline"}  # DualTalk only
+    assert _rows(ours, "test", "0", "dualtalk", "value")["fd_exp"] == 10.0
 
 
 def test_missing_rows_are_shown_and_listed_never_filled(results):
@@ -84,6 +87,7 @@ def test_missing_rows_are_shown_and_listed_never_filled(results):
     expected_rows = 2 * (1 + 3 * (1 + 2 * 3))  # splits x (offline dualtalk + contexts x (dualtalk + 2 x 3 rows))
     assert len(ours) == expected_rows
     assert "dyadbench synthetic test 0 timar-stream" in missing and "dyadbench synthetic ood 7 dualtalk" in missing
+    assert "dyadbench synthetic ood offline dualtalk-offline" in missing
     assert "dyadbench synthetic test 0 timar" not in missing
     assert len(missing) == 2 * 10 - 3  # 10 value rows per split, 3 present
     stream = _rows(ours, "test", "0", "timar-stream", "value")
