@@ -11,6 +11,7 @@ from __future__ import annotations
 import csv
 import json
 import math
+from pathlib import Path
 
 import pandas as pd
 import pytest
@@ -184,3 +185,16 @@ def test_published_block_is_paper_timar_csv(tmp_path):
     assert _rows(paper, "test", "3", "TIMAR", "better")["rpcc_pose"] == 0.0
     md = table1_texts(long_table([tmp_path], [PAPER_ROWS]))[0]["table1_paper_dualtalk.md"]
     assert "| -31.0% ✓ |" in md and "| +1.4% ✗ |" in md
+
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+def test_committed_table1_files_are_rebuilt_exactly_from_committed_results(monkeypatch):
+    """What `dyadbench leaderboard results --latex --table1 --out leaderboards` writes for Table 1."""
+    monkeypatch.chdir(REPO)
+    texts, _ = table1_texts(long_table([Path("results")], [PAPER_ROWS]))
+    committed = sorted(p.name for p in (REPO / "leaderboards").glob("table1_*"))
+    assert committed == sorted(texts)
+    for name in committed:
+        assert (REPO / "leaderboards" / name).read_bytes() == texts[name].encode("utf-8"), name
