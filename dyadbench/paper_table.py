@@ -76,15 +76,16 @@ LAYOUTS = {"dyadbench": Layout(("dualtalk-offline",), ("dualtalk",), ("timar", "
 
 
 def table1_runs(long: pd.DataFrame) -> pd.DataFrame:
-    """One row per Table 1 run of the long table: :data:`KEY`, ``marks``, ``file`` and the printed
-    columns (scaled). InputError naming the files when two runs fill the same row."""
+    """One row per Table 1 run of the long table (a layout's model, split and context, default settings):
+    :data:`KEY`, ``marks``, ``file`` and the printed columns (scaled). InputError naming the files when
+    two runs fill the same row."""
+    context = long["context"].astype("Int64").astype(str).where(long["protocol"] != OFFLINE, OFFLINE)
     layouts = [LAYOUTS.get(s) for s in long["source"]]
-    keep = pd.Series([lay is not None and m in lay.rows(OFFLINE if p == OFFLINE else "0")
-                      for lay, m, p in zip(layouts, long["model"], long["protocol"])], index=long.index, dtype=bool)
-    part = long[(long["suite"] == SUITE) & keep & _default_settings(long)]
-    context = part["context"].astype("Int64").astype(str)
-    part = part.assign(context=context.where(part["protocol"] != OFFLINE, OFFLINE), flags=part["flags"].fillna(""),
-                       file=part["reference"])
+    keep = pd.Series([lay is not None and m in lay.rows(c) for lay, m, c in zip(layouts, long["model"], context)],
+                     index=long.index, dtype=bool)
+    part = long.assign(context=context, flags=long["flags"].fillna(""), file=long["reference"])
+    shown = (part["suite"] == SUITE) & part["split"].isin(SPLITS) & part["context"].isin(CONTEXTS) & keep
+    part = part[shown & _default_settings(part)]
     if part.empty:
         return pd.DataFrame(columns=KEY + ["marks", "file"] + table_columns(SUITE))
     wide = part.set_index(KEY + ["flags", "file", "metric"])["scaled"].unstack("metric").reset_index()
