@@ -7,7 +7,9 @@ cache (``local_files_only=True``); nothing is ever downloaded. Without them, :fu
 
 Pipeline (TIMAR's released implementation, ``facebook/wav2vec2-large-960h-lv60-self``):
 
-1. normalise the whole waveform given: (x - mean) / sqrt(var + 1e-7);
+1. normalise the waveform: (x - mean) / sqrt(var + 1e-7) in float32, as the release's feature extractor
+   does, with the mean and variance of the whole waveform given, or with ``stats`` passed in (the
+   protocol's ``--speech-norm clip``: the whole clip's, as the released evaluation normalises each clip);
 2. cut it into 1-s chunks of 16,000 samples (the last one zero-padded);
 3. per chunk, the convolutional feature extractor: 49 frames of 512-d at ~50 Hz;
 4. linear interpolation to 25 frames (``align_corners=True``);
@@ -16,7 +18,7 @@ Pipeline (TIMAR's released implementation, ``facebook/wav2vec2-large-960h-lv60-s
 
 Output: (T, hidden_size) float32 (1024 for large models, 768 for base). Each chunk is encoded on its
 own, so a turn's features depend only on that turn's samples once the waveform is normalised (step 1
-uses the statistics of the whole waveform passed in, as TIMAR does).
+uses the statistics of the whole waveform passed in unless ``stats`` are given).
 """
 
 from __future__ import annotations
@@ -60,10 +62,17 @@ def load_wav2vec(source: str | Path = DEFAULT_MODEL, device: str = "cpu"):
     return model.to(device)
 
 
-def normalise(audio: np.ndarray) -> np.ndarray:
-    """Zero mean, unit variance over the whole waveform (float32)."""
-    x = np.asarray(audio, dtype=np.float64)
-    return ((x - x.mean()) / np.sqrt(x.var() + NORM_EPS)).astype(np.float32)
+def waveform_stats(audio: np.ndarray) -> tuple[float, float]:
+    """(mean, variance) of a waveform, computed in float32 as the release's feature extractor does."""
+    x = np.asarray(audio, dtype=np.float32)
+    return float(x.mean()), float(x.var())
+
+
+def normalise(audio: np.ndarray, stats: tuple[float, float] | None = None) -> np.ndarray:
+    """(x - mean) / sqrt(var + 1e-7) in float32, with ``stats`` = (mean, var) or the waveform's own."""
+    x = np.asarray(audio, dtype=np.float32)
+    mean, var = stats if stats is not None else waveform_stats(x)
+    return (x - np.float32(mean)) / np.sqrt(np.float32(var) + np.float32(NORM_EPS))
 
 
 def chunk_features(model, chunks, frames_per_chunk: int = 25):
@@ -79,8 +88,9 @@ def chunk_features(model, chunks, frames_per_chunk: int = 25):
 
 
 def wav2vec_frames(model, audio: np.ndarray, sample_rate: int = 16_000, fps: float = 25.0,
-                   batch_size: int = 16) -> np.ndarray:
-    """(floor(len(audio) * fps / sample_rate), hidden_size) float32 features (see the module docstring)."""
+                   batch_size: int = 16, stats: tuple[float, float] | None = None) -> np.ndarray:
+    """(floor(len(audio) * fps / sample_rate), hidden_size) float32 features (see the module docstring);
+    ``stats``: (mean, var) to normalise with instead of the waveform's own."""
     import torch
 
     audio = np.asarray(audio)
@@ -94,7 +104,7 @@ def wav2vec_frames(model, audio: np.ndarray, sample_rate: int = 16_000, fps: flo
     hidden = model.config.hidden_size
     if n_frames == 0:
         return np.zeros((0, hidden), dtype=np.float32)
-    x = normalise(audio)
+    x = normalise(audio, stats)
     n_chunks = -(-len(x) // chunk)
     x = np.pad(x, (0, n_chunks * chunk - len(x))).reshape(n_chunks, chunk)
     device = next(model.parameters()).device

@@ -45,6 +45,11 @@ def load_checkpoint(path: str | Path, *, expect_model: str | None = None) -> dic
         payload = torch.load(path, map_location="cpu", weights_only=False)
     except Exception as exc:  # corrupted or not a torch file
         raise InputError(path, f"not a readable dyadbench checkpoint ({type(exc).__name__}: {exc})") from None
+    return check_checkpoint(path, payload, expect_model)
+
+
+def check_checkpoint(path: str | Path, payload: object, expect_model: str | None = None) -> dict:
+    """``payload`` if it is a dyadbench checkpoint (of ``expect_model`` when given), else an InputError."""
     if not isinstance(payload, dict) or not {"model", "config", "meta"} <= set(payload):
         raise InputError(path, "not a dyadbench checkpoint (needs keys model, config, meta)")
     if expect_model is not None and payload["meta"].get("model") != expect_model:

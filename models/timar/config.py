@@ -44,6 +44,7 @@ class TimarConfig:
     # tokens
     token_dim: int = 64  # d_t: shared token space of speech and motion tokens
     speech_frontend: str = "logmel"  # "logmel" (embedded default) or "wav2vec" (local weights)
+    speech_width: int | None = None  # speech feature width when not the frontend's usual (a smaller wav2vec)
     motion_dim: int = MOTION_DIM
     frames_per_turn: int = 25  # 1-s turns at 25 fps
     samples_per_turn: int = 16_000  # 1-s turns at 16 kHz
@@ -85,7 +86,7 @@ class TimarConfig:
 
     @property
     def speech_dim(self) -> int:
-        return SPEECH_DIMS[self.speech_frontend]
+        return self.speech_width or SPEECH_DIMS[self.speech_frontend]
 
     @property
     def tokens_per_turn(self) -> int:

@@ -33,8 +33,11 @@ class SpeechFrontend:
     def chunk_features(self, chunk: np.ndarray) -> np.ndarray:
         raise NotImplementedError
 
-    def features(self, audio: np.ndarray, turns: int) -> np.ndarray:
-        """Each chunk featurised on its own (subclasses may featurise the whole audio at once)."""
+    def features(self, audio: np.ndarray, turns: int, stats: tuple[float, float] | None = None) -> np.ndarray:
+        """Each chunk featurised on its own (subclasses may featurise the whole audio at once).
+
+        ``stats``: (mean, var) of the whole clip's waveform for frontends that normalise the waveform
+        (the protocol's ``--speech-norm clip``); log-mel features do not normalise it and ignore them."""
         audio = np.asarray(audio, dtype=np.float32)
         if audio.ndim != 1 or audio.shape[0] < turns * self.samples_per_turn:
             raise InputError("speech", f"need mono audio of at least {turns} x {self.samples_per_turn} samples, "
@@ -54,9 +57,10 @@ class LogMelFrontend(SpeechFrontend):
 class Wav2VecFrontend(SpeechFrontend):
     """:func:`dyadbench.features.wav2vec.wav2vec_frames` on the audio passed in.
 
-    That function normalises the waveform it is given before cutting 1-s chunks (as TIMAR does with
-    whole clips): in training the whole clip, in streaming only the turns the model is handed, so the
-    streamed features stay causal.
+    That function normalises the waveform before cutting 1-s chunks: with the whole clip's statistics
+    when ``stats`` are given (the release, and ``--speech-norm clip``), else with those of the audio
+    passed in (in training the whole clip, in streaming only the turns the model is handed, so the
+    streamed features stay causal).
     """
 
     name = "wav2vec"
@@ -69,9 +73,9 @@ class Wav2VecFrontend(SpeechFrontend):
         self._model = wav2vec.load_wav2vec(weights or wav2vec.DEFAULT_MODEL)
         self.dim = int(self._model.config.hidden_size)
 
-    def features(self, audio: np.ndarray, turns: int) -> np.ndarray:
+    def features(self, audio: np.ndarray, turns: int, stats: tuple[float, float] | None = None) -> np.ndarray:
         audio = np.asarray(audio, dtype=np.float32)[:turns * self.samples_per_turn]
-        return self._wav2vec.wav2vec_frames(self._model, audio, self.sample_rate, self.fps)
+        return self._wav2vec.wav2vec_frames(self._model, audio, self.sample_rate, self.fps, stats=stats)
 
 
 def make_frontend(cfg: TimarConfig, sample_rate: int = 16_000, fps: float = 25.0,

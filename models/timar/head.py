@@ -24,7 +24,10 @@ def _modulate(x: torch.Tensor, shift: torch.Tensor, gain: torch.Tensor) -> torch
 
 
 class TimestepEmbedder(nn.Module):
-    """Sinusoidal embedding of the (original) diffusion timestep followed by a 2-layer SiLU MLP."""
+    """Sinusoidal embedding of the (original) diffusion timestep followed by a 2-layer SiLU MLP.
+
+    The sinusoid table is computed in float32 whatever the model's dtype (as the release does) and then
+    cast to the MLP's dtype."""
 
     def __init__(self, width: int, frequency_size: int = 256):
         super().__init__()
@@ -35,7 +38,8 @@ class TimestepEmbedder(nn.Module):
         half = self.frequency_size // 2
         freqs = torch.exp(-math.log(10_000) * torch.arange(half, dtype=torch.float32, device=t.device) / half)
         args = t.float()[:, None] * freqs[None]
-        return self.mlp(torch.cat([torch.cos(args), torch.sin(args)], dim=-1))
+        table = torch.cat([torch.cos(args), torch.sin(args)], dim=-1)
+        return self.mlp(table.to(self.mlp[0].weight.dtype))
 
 
 @dataclass(frozen=True)

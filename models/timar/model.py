@@ -127,11 +127,13 @@ class TimarModel(nn.Module):
 
     # --- backbone ------------------------------------------------------------------------------------
     def _causal_bias(self, turns: int) -> torch.Tensor:
-        """Turn-level causal mask (N·L, N·L): 0 where turn(key) <= turn(query), else -inf."""
+        """Turn-level causal mask (N·L, N·L): 0 where turn(key) <= turn(query), else -inf (in the model's
+        dtype: torch's CPU attention mis-computes a float64 query with a float32 mask)."""
         length = self.cfg.tokens_per_turn
         turn = torch.arange(turns, device=self.pos_embed.device).repeat_interleave(length)
         allowed = turn[None, :] <= turn[:, None]
-        return torch.zeros(allowed.shape, device=allowed.device).masked_fill(~allowed, -math.inf)
+        return torch.zeros(allowed.shape, device=allowed.device, dtype=self.pos_embed.dtype).masked_fill(
+            ~allowed, -math.inf)
 
     def _band_layer(self, layer: int, x: torch.Tensor, past: list[KV], band: int) -> tuple[torch.Tensor, list[KV]]:
         """One block of the stream variant over the turns of ``x`` (B, N·L, D) after the ``past`` turns.

@@ -1,12 +1,21 @@
 """Model factories registered as ``timar`` and ``timar-stream`` in :data:`dyadbench.registry.MODELS`.
 
-Both load a checkpoint written by ``dyadbench train timar`` / ``timar-stream``: ``options.weights`` if
-given, else the tiny checkpoint shipped with the package (``models/timar/checkpoints/``). Options:
+Both load a checkpoint written by ``dyadbench train timar`` / ``timar-stream`` (or by ``dyadbench weights
+convert``): ``options.weights`` if given, else the tiny checkpoint shipped with the package
+(``models/timar/checkpoints/``). ``timar`` also takes the released TIMAR checkpoint, converted in memory
+(:mod:`models.timar.official`); the result then records the official file's digest and
+``"format": "official"``. Every file is read with ``torch.load(weights_only=True)`` (only the globals
+the release's format needs are allowed). Weights converted from the release sample as the release does
+(learned variance unclamped) unless ``clamp_variance`` is given. Options:
 ``cfg_scale`` (classifier-free guidance, 1 = off as in the published runs), ``seed`` (per-stream
 seeds come from the protocol), ``device``, and in ``extra``: ``cache`` (default True; False re-encodes
 as the released implementation does), ``temperature`` (default 1), ``clamp_variance`` (default True;
 False samples exactly as the released code, see :meth:`models.timar.diffusion.GaussianDiffusion.sample`),
-``wav2vec_weights`` (local folder of the wav2vec 2.0 model for configurations that use it).
+``wav2vec_weights`` (local folder of the wav2vec 2.0 model for configurations that use it),
+``guidance_null`` (what the unconditional branch nulls: ``current-turn``, the release and default, or
+``every-turn``; see :mod:`models.timar.streaming`). With guidance on (``cfg_scale`` != 1) the recorded
+model version names the null policy (``<version>+null-current-turn``), so results sampled with another
+unconditional branch are told apart and found stale.
 """
 
 from __future__ import annotations
@@ -15,10 +24,12 @@ from pathlib import Path
 
 from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
-from dyadbench.training.checkpoint import file_digest, load_checkpoint
+from dyadbench.torch_files import load_tensors_only
+from dyadbench.training.checkpoint import check_checkpoint, file_digest
 from models.timar.config import TimarConfig
 from models.timar.frontends import make_frontend
 from models.timar.model import TimarModel, with_motion_statistics
+from models.timar.official import convert_official, is_official, official_globals
 from models.timar.streaming import BandStream, FaithfulStream
 
 CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
@@ -31,14 +42,22 @@ def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]
     """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta).
 
     A checkpoint from before motion normalisation (no ``motion_norm`` in its config, no motion
-    statistics in its weights) loads with ``motion_norm = "none"`` and identity statistics.
+    statistics in its weights) loads with ``motion_norm = "none"`` and identity statistics. The released
+    TIMAR checkpoint (``timar`` only) is converted in memory.
     """
     path = Path(weights) if weights is not None else SHIPPED[name]
     if not path.is_file():
         where = "given with --weights" if weights is not None else "shipped with the package"
         raise InputError(path, f"no {name} checkpoint ({where}); train one with `{TRAIN_HINT[name]}` "
                                f"and pass it with --weights PATH")
-    payload = load_checkpoint(path, expect_model=name)
+    payload = load_tensors_only(path, allowed_globals=official_globals(), what=f"{name} checkpoint")
+    if is_official(payload):
+        if name != "timar":
+            raise InputError(path, f"this is the released TIMAR checkpoint (the faithful model): use --model timar, "
+                                   f"not {name}")
+        model, meta = convert_official(path, payload)
+        return model, path, meta
+    payload = check_checkpoint(path, payload, expect_model=name)
     cfg = TimarConfig.from_dict(payload["config"])
     model = TimarModel(cfg)
     try:
@@ -52,16 +71,23 @@ def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | 
     model, path, meta = load_timar(name, options.weights)
     use_cache = bool(options.extra.get("cache", True))
     temperature = float(options.extra.get("temperature", 1.0))
-    clamp_variance = bool(options.extra.get("clamp_variance", True))
-    info = ModelInfo(name=name, version=str(meta.get("dyadbench_version", "1")), weights_digest=file_digest(path),
+    clamp_variance = bool(options.extra.get("clamp_variance", meta.get("sampler", {}).get("clamp_variance", True)))
+    guidance_null = str(options.extra.get("guidance_null", "current-turn"))
+    version = str(meta.get("dyadbench_version", "1"))
+    if options.cfg_scale != 1.0:
+        version += f"+null-{guidance_null}"
+    info = ModelInfo(name=name, version=version, weights_digest=file_digest(path),
                      weights_path=str(path),
                      config={**model.cfg.to_dict(), "cfg_scale": options.cfg_scale, "cache": use_cache,
                              "temperature": temperature, "clamp_variance": clamp_variance,
+                             "guidance_null": guidance_null, "format": meta.get("format", "native"),
+                             "converted_from": meta.get("converted_from"),
                              "data_digest": meta.get("data_digest"),
                              "train_epochs": meta.get("epoch"), "train_command": meta.get("command")})
     frontend = make_frontend(model.cfg, wav2vec_weights=options.extra.get("wav2vec_weights"))
     return stream_cls(model, frontend, info, cfg_scale=options.cfg_scale, use_cache=use_cache,
-                      temperature=temperature, clamp_variance=clamp_variance, device=options.device)
+                      temperature=temperature, clamp_variance=clamp_variance, guidance_null=guidance_null,
+                      device=options.device)
 
 
 def build_timar(options: ModelOptions) -> FaithfulStream:

@@ -15,6 +15,12 @@ does, so cached and uncached runs give the same numbers up to float round-off).
   once computed. Cached, they are computed once and reused. Uncached, the last depth·n + 1 turns (the
   receptive field of the current turn through the stacked bands) are re-encoded; that is exact too.
   The stream keeps the tokens of the turns it was given (receptive field) itself.
+
+Classifier-free guidance (``cfg_scale`` != 1) runs a second, unconditional branch. ``guidance_null``
+says what it nulls: ``"current-turn"`` (default, the release) replaces only the current turn's
+user-speech and user-motion frame tokens by the null token, so history turns are the same in both
+branches (their cached keys/values are the conditional branch's); ``"every-turn"`` nulls the user
+frames of every turn in the window (the earlier dyadbench variant, kept as a named option).
 """
 
 from __future__ import annotations
@@ -30,11 +36,15 @@ from models.timar.backbone import KV
 from models.timar.frontends import SpeechFrontend
 from models.timar.model import TimarModel
 
+GUIDANCE_NULLS = ("current-turn", "every-turn")
+
 
 class _TimarStreamBase(StreamingModel):
     def __init__(self, model: TimarModel, frontend: SpeechFrontend, info: ModelInfo, *, cfg_scale: float = 1.0,
                  use_cache: bool = True, temperature: float = 1.0, clamp_variance: bool = True,
-                 device: str = "cpu"):
+                 guidance_null: str = "current-turn", device: str = "cpu"):
+        if guidance_null not in GUIDANCE_NULLS:
+            raise ConfigError(f"guidance_null must be one of {', '.join(GUIDANCE_NULLS)}, got {guidance_null!r}")
         self.model = model.eval().to(device)
         self.frontend = frontend
         self.info = info
@@ -42,9 +52,11 @@ class _TimarStreamBase(StreamingModel):
         self.use_cache = use_cache
         self.temperature = temperature
         self.clamp_variance = clamp_variance
+        self.guidance_null = guidance_null
         self.device = torch.device(device)
         self._generator = torch.Generator()
         self._context = 0
+        self._audio_stats: tuple = (None, None)
 
     def start_stream(self, ctx: StreamContext) -> None:
         cfg = self.model.cfg
@@ -59,6 +71,7 @@ class _TimarStreamBase(StreamingModel):
                               f"got {ctx.context_turns}")
         self._generator = torch.Generator().manual_seed(ctx.seed)
         self._context = ctx.context_turns
+        self._audio_stats = (ctx.user_audio_stats, ctx.agent_audio_stats)  # set only with speech_norm "clip"
         self.frontend.sample_rate, self.frontend.fps = ctx.sample_rate, ctx.fps
         self._reset()
 
@@ -79,13 +92,22 @@ class _TimarStreamBase(StreamingModel):
         def t(x: np.ndarray) -> torch.Tensor:
             return torch.from_numpy(np.array(x, dtype=np.float32)).to(self.device).view(1, turns, F, -1)
 
-        us, as_ = self.frontend.features(user_audio, turns), self.frontend.features(agent_audio, turns)
+        user_stats, agent_stats = self._audio_stats
+        us = self.frontend.features(user_audio, turns, user_stats)
+        as_ = self.frontend.features(agent_audio, turns, agent_stats)
         um = user_motion[:turns * F]
         user_null = torch.zeros(self._branches, turns, 2 * F, dtype=torch.bool, device=self.device)
-        user_null[1:] = True
+        user_null[1:, -1:] = True  # the unconditional branch nulls the current (last) turn's user frames ...
+        if self.guidance_null == "every-turn":
+            user_null[1:] = True  # ... or those of every turn in the window
         b = self._branches
         return self.model.turn_tokens(t(us).expand(b, -1, -1, -1), t(um).expand(b, -1, -1, -1),
                                       t(as_).expand(b, -1, -1, -1), user_null=user_null)
+
+    def _as_history(self, x: torch.Tensor) -> torch.Tensor:
+        """What the current turn's tokens or keys/values (branches first) become once it is a history turn:
+        with current-turn nulling the unconditional branch sees history as the conditional branch does."""
+        return x if self.guidance_null == "every-turn" else x[:1].expand_as(x)
 
     def _current_tokens(self, turn: TurnInput) -> torch.Tensor:
         return self._tokens(turn.current_user_motion, turn.current_user_audio, turn.current_agent_audio, 1)
@@ -102,7 +124,7 @@ class FaithfulStream(_TimarStreamBase):
 
     def _reset(self) -> None:
         self._past: list[list[KV]] = [[] for _ in self.model.blocks]
-        self._window: deque[torch.Tensor] = deque(maxlen=self._context + 1)
+        self._window: deque[torch.Tensor] = deque(maxlen=self._context)  # history turns' tokens
 
     @torch.no_grad()
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
@@ -110,14 +132,15 @@ class FaithfulStream(_TimarStreamBase):
             tokens = self._tokens(turn.user_motion, turn.user_audio, turn.agent_audio, turn.history_turns + 1)
             return self._sample(self.model.encode(tokens)[:, -1:])
         current = self._current_tokens(turn)
-        self._window.append(current)
+        history = list(self._window)
+        self._window.append(self._as_history(current))
         if turn.turn <= self._context:  # window still starts at turn 0: earlier turns' states are final
             cond, kv = self.model.encode_next_turn(current, self._past)
-            for layer, pair in enumerate(kv):
-                self._past[layer].append(pair)
+            for layer, (k, v) in enumerate(kv):
+                self._past[layer].append((self._as_history(k), self._as_history(v)))
             return self._sample(cond)
         self._past = [[] for _ in self.model.blocks]  # window slid: positions of every turn changed
-        return self._sample(self.model.encode(torch.cat(list(self._window), dim=1))[:, -1:])
+        return self._sample(self.model.encode(torch.cat([*history, current], dim=1))[:, -1:])
 
 
 class BandStream(_TimarStreamBase):
@@ -126,16 +149,17 @@ class BandStream(_TimarStreamBase):
     def _reset(self) -> None:
         band = self._context
         self._past = [deque(maxlen=band) for _ in self.model.blocks]
-        self._turns: deque[torch.Tensor] = deque(maxlen=len(self.model.blocks) * band + 1)
+        self._turns: deque[torch.Tensor] = deque(maxlen=len(self.model.blocks) * band)  # history tokens
 
     @torch.no_grad()
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
         current = self._current_tokens(turn)
         if not self.use_cache:
-            self._turns.append(current)
-            return self._sample(self.model.encode(torch.cat(list(self._turns), dim=1), self._context)[:, -1:])
+            tokens = torch.cat([*self._turns, current], dim=1)
+            self._turns.append(self._as_history(current))
+            return self._sample(self.model.encode(tokens, self._context)[:, -1:])
         cond, kv = self.model.encode_next_turn(current, [list(p) for p in self._past])
         if self._context:
-            for layer, pair in enumerate(kv):
-                self._past[layer].append(pair)
+            for layer, (k, v) in enumerate(kv):
+                self._past[layer].append((self._as_history(k), self._as_history(v)))
         return self._sample(cond)
