@@ -65,6 +65,7 @@ class ProtocolRecord:
     history_agent: str
     cfg_scale: float
     seed: int
+    speech_norm: str = "window"  # "clip": waveforms normalised with whole-clip statistics (not strictly causal)
 
 
 @dataclass(frozen=True)

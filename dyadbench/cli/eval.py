@@ -13,11 +13,11 @@ import click
 
 from dyadbench import atomic
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
-from dyadbench.cli.splits import open_splits
+from dyadbench.cli.splits import ON_DISK, open_splits
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
-from dyadbench.protocol.config import HISTORY_AGENT, TAILS, ProtocolConfig
+from dyadbench.protocol.config import HISTORY_AGENT, SPEECH_NORMS, TAILS, ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import EvalResult, load_result
@@ -58,7 +58,7 @@ def data_options(f: Callable) -> Callable:
 
 
 def protocol_options(f: Callable) -> Callable:
-    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights."""
+    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights / --wav2vec / --speech-norm."""
     options = [
         click.option("--turn-seconds", default=1.0, show_default=True, type=POSITIVE,
                      help="Turn length in seconds (must hold whole frames and samples; 1 s = 25 frames)."),
@@ -74,14 +74,30 @@ def protocol_options(f: Callable) -> Callable:
         click.option("--cfg-scale", default=1.0, show_default=True, type=NON_NEGATIVE,
                      help="Classifier-free guidance scale for models that support it (1 = off)."),
         click.option("--weights", default=None, type=click.Path(exists=True, dir_okay=False, path_type=Path),
-                     help="Checkpoint for models with weights (default: the model's shipped checkpoint)."),
+                     help="Checkpoint for models with weights (default: the model's shipped checkpoint). "
+                          "timar also takes the released TIMAR checkpoint (converted in memory; "
+                          "`dyadbench weights convert` writes it once as a native file)."),
+        click.option("--wav2vec", "wav2vec", default=None,
+                     type=click.Path(exists=True, file_okay=False, path_type=Path),
+                     help="Local wav2vec 2.0 model folder for models with wav2vec speech features (the "
+                          "released TIMAR: facebook/wav2vec2-large-960h-lv60-self). Never downloaded."),
+        click.option("--speech-norm", default="window", show_default=True, type=click.Choice(SPEECH_NORMS),
+                     help="Waveform normalisation of wav2vec front ends: window (causal: the audio of the "
+                          "turns handed over) or clip (the whole clip's mean and variance, as the released "
+                          "TIMAR and DualTalk evaluations and their published numbers; reads future audio, "
+                          "so the run is recorded as not strictly causal)."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
 
+def wav2vec_extra(wav2vec: Path | None) -> dict:
+    """The model option naming the local wav2vec 2.0 folder (none without --wav2vec)."""
+    return {} if wav2vec is None else {"wav2vec_weights": str(wav2vec)}
+
+
 def resolve_dataset(data: Path | None, dataset: str | None) -> str:
     name = dataset or ("dualtalk" if data is not None else EMBEDDED)
-    if data is None and name not in (EMBEDDED, "synthetic-gaze"):
+    if data is None and name not in ON_DISK:
         raise ConfigError(f"--dataset {name} needs --data DIR (only the embedded corpora need none)")
     return name
 
@@ -187,9 +203,10 @@ def is_predictions_folder(folder: Path) -> bool:
 @click.option("--force", is_flag=True,
               help="Replace --out even when it holds files that are not a previous eval output.")
 def eval_command(model: str, split: str | None, context: int, turn_seconds: float, tail: str,
-                 history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
-                 dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
-                 threads: int | None, style_from: str | None, out: Path | None, force: bool) -> None:
+                 history_agent: str, seed: int, cfg_scale: float, weights: Path | None, wav2vec: Path | None,
+                 speech_norm: str, data: Path | None, dataset: str | None, train: Path | None,
+                 allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
+                 style_from: str | None, out: Path | None, force: bool) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
     \b
@@ -202,14 +219,16 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
     """
     MODELS.get(model)
     config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
-                            seed=seed)
+                            seed=seed, speech_norm=speech_norm)
     name = resolve_dataset(data, dataset)
     check_cache()
     given = None if out is None else eval_output(out, force).check()  # before reading or digesting any data
     source, train_split = open_splits(data, name, split, train=train, allow_overlap=allow_train_overlap)
     out = out or Path("runs") / f"{model}_{name}_{source.split}_n{context}"
     with (given or eval_output(out, force)).writing() as staging:
-        extra = {} if style_from is None else {"style_from": style_reference(source, style_from)}
+        extra = wav2vec_extra(wav2vec)
+        if style_from is not None:
+            extra["style_from"] = style_reference(source, style_from)
         result = run_one(model, source, train_split, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
                          jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads)
         result = predictions_at(result, out / "predictions")

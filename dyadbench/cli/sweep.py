@@ -26,7 +26,7 @@ import click
 from click.core import ParameterSource
 
 from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
-                                resolve_dataset, run_one, save_result, summary)
+                                resolve_dataset, run_one, save_result, summary, wav2vec_extra)
 from dyadbench.cli.options import IntList
 from dyadbench.cli.splits import sweep_splits
 from dyadbench.errors import ConfigError, InputError
@@ -39,8 +39,8 @@ from dyadbench.staleness import STALE, Checker, RecordedRun, open_split, recorde
 
 #: Options describing which runs to make; ``--stale`` takes them from each result file and refuses them.
 RUN_OPTIONS = ("models", "splits", "context_list", "turn_seconds", "tail", "history_agent", "seed", "cfg_scale",
-               "weights", "data", "dataset", "train", "allow_train_overlap", "clips", "keep_predictions",
-               "per_clip", "force")
+               "weights", "wav2vec", "speech_norm", "data", "dataset", "train", "allow_train_overlap", "clips",
+               "keep_predictions", "per_clip", "force")
 
 
 def result_path(out: Path, dataset: str, split: str, context: int, model: str, variant: str = "") -> Path:
@@ -160,7 +160,8 @@ def _csv(value: str, what: str) -> list[str]:
                    "records, writing over the file. Takes only --out, --jobs and --threads.")
 @click.pass_context
 def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
-          tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None, data: Path | None,
+          tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None,
+          wav2vec: Path | None, speech_norm: str, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
           threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
           stale: bool) -> None:
@@ -199,9 +200,9 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
         split = source.split
         for context in context_list:
             config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail,
-                                    history_agent=history_agent, seed=seed)
+                                    history_agent=history_agent, seed=seed, speech_norm=speech_norm)
             variant = variant_label(turn_seconds=turn_seconds, tail=tail, history_agent=history_agent,
-                                    cfg_scale=cfg_scale, seed=seed)
+                                    cfg_scale=cfg_scale, seed=seed, speech_norm=speech_norm)
             for name in names:
                 path = result_path(out, dataset_name, split, context, name, variant)
                 check = reuse_check(path) if path.exists() and not force else None
@@ -211,7 +212,7 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                     with kept_predictions(preds, force) as staging:
                         result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                                          clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
-                                         check_configuration=check)
+                                         extra=wav2vec_extra(wav2vec), check_configuration=check)
                 except Unchanged:
                     click.echo(f"skip {path} (same configuration; --force re-runs)")
                     continue

@@ -8,6 +8,10 @@
 - ``history_agent``: ``masked`` (default, TIMAR's published runs: the model never sees agent motion of
   history turns) or ``outputs`` (the model gets its own earlier outputs for the history turns).
 - ``seed``: run seed; each stream's seed is derived from (seed, clip, agent).
+- ``speech_norm``: statistics that models normalising waveforms (wav2vec 2.0 front ends) use:
+  ``window`` (default, causal: the audio handed over with each turn) or ``clip`` (the whole clip's
+  waveform mean and variance, handed over in the stream context, as the released TIMAR and DualTalk
+  evaluations normalise each clip; it reads future audio, so such runs are not strictly causal).
 """
 
 from __future__ import annotations
@@ -18,6 +22,7 @@ from dyadbench.errors import ConfigError
 
 TAILS = ("truncate", "pad-last")
 HISTORY_AGENT = ("masked", "outputs")
+SPEECH_NORMS = ("window", "clip")
 _INTEGER_TOLERANCE = 1e-9
 
 
@@ -30,6 +35,7 @@ class ProtocolConfig:
     tail: str = "truncate"
     history_agent: str = "masked"
     seed: int = 0
+    speech_norm: str = "window"
 
     def __post_init__(self) -> None:
         if isinstance(self.context, bool) or not isinstance(self.context, int) or self.context < 0:
@@ -46,6 +52,8 @@ class ProtocolConfig:
         if self.history_agent not in HISTORY_AGENT:
             raise ConfigError(f"history_agent must be one of {', '.join(HISTORY_AGENT)}, "
                               f"got {self.history_agent!r}")
+        if self.speech_norm not in SPEECH_NORMS:
+            raise ConfigError(f"speech_norm must be one of {', '.join(SPEECH_NORMS)}, got {self.speech_norm!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ConfigError(f"seed must be an integer, got {self.seed!r}")
 
@@ -75,12 +83,12 @@ DEFAULT_CFG_SCALE = 1.0  # guidance off, as in TIMAR's published runs
 
 def variant_label(*, turn_seconds: float = _DEFAULT.turn_seconds, tail: str = _DEFAULT.tail,
                   history_agent: str = _DEFAULT.history_agent, cfg_scale: float = DEFAULT_CFG_SCALE,
-                  seed: int = _DEFAULT.seed) -> str:
+                  seed: int = _DEFAULT.seed, speech_norm: str = _DEFAULT.speech_norm) -> str:
     """Short name of a run's settings that differ from the default protocol ("" when none do).
 
     Used to keep runs of one model apart that differ only in these settings: the sweep's result file
     names (``<model>@<label>.json``) and the model labels of the wide leaderboards, e.g.
-    ``cfg2+seed1`` for guidance scale 2 with run seed 1. Context is not part of it (it has its own
+    ``cfg2+seed1`` for guidance scale 2 with run seed 1 (``speech-clip`` for ``speech_norm = clip``). Context is not part of it (it has its own
     folder and column).
     """
     parts = []
@@ -94,4 +102,6 @@ def variant_label(*, turn_seconds: float = _DEFAULT.turn_seconds, tail: str = _D
         parts.append(f"cfg{cfg_scale:g}")
     if seed != _DEFAULT.seed:
         parts.append(f"seed{seed}")
+    if speech_norm != _DEFAULT.speech_norm:
+        parts.append(f"speech-{speech_norm}")
     return "+".join(parts)

@@ -21,6 +21,7 @@ LABELS = {"model": "the model", "model_version": "the model's version", "weights
           "dataset": "--dataset", "split": "the split", "root": "--data", "data_digest": "the data's content",
           "clips": "--clips", "turn_seconds": "--turn-seconds", "context": "the context n", "tail": "--tail",
           "history_agent": "--history-agent", "cfg_scale": "--cfg-scale", "seed": "--seed",
+          "speech_norm": "--speech-norm",
           "train": "the train split"}
 TRAIN_KEYS = ("dataset", "split", "root", "digest")
 
@@ -29,13 +30,15 @@ def requested_configuration(model_name: str, info: ModelInfo, source: ClipSource
                             config: ProtocolConfig, cfg_scale: float, data_digest: str,
                             train: dict | None) -> dict:
     """The canonical configuration of a run (see the module docstring); ``train``: the train split's record
-    (:func:`dyadbench.protocol.train_split.train_record`)."""
+    (:func:`dyadbench.protocol.train_split.train_record`). ``speech_norm`` is present only when not the default
+    ``window``, so results recorded before the setting existed still match."""
+    speech_norm = {} if config.speech_norm == "window" else {"speech_norm": config.speech_norm}
     return {"model": model_name, "model_version": info.version, "weights_digest": info.weights_digest,
             "dataset": source.dataset, "split": source.split, "root": root_identity(source), "clips": clips,
             "data_digest": data_digest, "turn_seconds": config.turn_seconds,
             "context": config.context, "tail": config.tail, "history_agent": config.history_agent,
             "cfg_scale": float(cfg_scale), "seed": config.seed,
-            "train": None if train is None else {k: train[k] for k in TRAIN_KEYS}}
+            "train": None if train is None else {k: train[k] for k in TRAIN_KEYS}, **speech_norm}
 
 
 def differences(recorded: dict, requested: dict) -> list[str]:

@@ -199,10 +199,11 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                         digest=data_digest, train=train),
         protocol=ProtocolRecord(name=protocol_name, turn_seconds=config.turn_seconds, context=config.context,
                                 tail=config.tail, history_agent=config.history_agent,
-                                cfg_scale=float(options.cfg_scale), seed=config.seed),
+                                cfg_scale=float(options.cfg_scale), seed=config.seed,
+                                speech_norm=config.speech_norm),
         suite=suite, metrics=dict(report.metrics), scaled=report.scaled, scaling=report.scaling,
         per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
-        notes=overlap_notes(train) + list(report.notes)
+        notes=overlap_notes(train) + speech_norm_notes(config) + list(report.notes)
         + ([f"scores reused: this process already scored byte-identical predictions "
             f"(sha256 {reused[:16]})"] if reused else []),
         predictions=None if temporary else str(pred_dir),
@@ -210,6 +211,15 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                             mean_turn_latency_s=model_s / max(len(latencies), 1), threads=threads),
         environment=environment(), created_utc=utc_now(), configuration=requested,
         uncertainty=dict(report.uncertainty), uncertainty_method=dict(report.uncertainty_method))
+
+
+def speech_norm_notes(config: ProtocolConfig) -> list[str]:
+    """The note a run under ``--speech-norm clip`` carries (none otherwise)."""
+    if config.speech_norm != "clip":
+        return []
+    return ["speech-norm clip: models normalising waveforms read each clip's whole-waveform mean and variance "
+            "(as the released TIMAR and DualTalk evaluations do); this reads future audio, so the run is not "
+            "strictly causal"]
 
 
 _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()

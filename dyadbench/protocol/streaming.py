@@ -12,6 +12,10 @@ current turn (a NumPy view would expose the whole clip through ``.base``). Audio
 motion is zero-padded at the end; frames after the last whole turn are dropped (``tail = truncate``)
 or filled with the last predicted frame (``tail = pad-last``).
 
+With ``speech_norm = clip`` the stream context carries the (mean, variance) of each participant's
+whole-clip waveform (:func:`clip_audio_stats`); that is the only information about later audio a model
+gets, and it is why such runs are recorded as not strictly causal.
+
 Single-participant clips (gaze–head sessions) stream with empty user arrays: ``user_motion`` has shape
 (frames, 0) and ``user_audio`` shape (0,). Speech features a dataset ships (``Participant.speech_features``,
 r rows per frame) are sliced over the same frames as the motion; they are ``None`` when it ships none.
@@ -48,22 +52,39 @@ class StreamOutput:
     protocol: str = "streaming"
 
 
-def stream_context(clip: DyadicClip, agent: str, config: ProtocolConfig) -> StreamContext:
-    """The :class:`StreamContext` of one direction; the per-stream seed is derived from (seed, clip, agent)."""
+def clip_audio_stats(audio: np.ndarray) -> tuple[float, float]:
+    """(mean, variance) of a whole-clip waveform, in float32 as the released feature extractors compute them."""
+    x = np.asarray(audio, dtype=np.float32)
+    return (float(x.mean()), float(x.var())) if x.size else (0.0, 0.0)
+
+
+def stream_context(clip: DyadicClip, agent: str, config: ProtocolConfig,
+                   stats_clip: DyadicClip | None = None) -> StreamContext:
+    """The :class:`StreamContext` of one direction; the per-stream seed is derived from (seed, clip, agent).
+
+    With ``config.speech_norm == "clip"`` it carries each participant's whole-clip waveform statistics, taken
+    from ``stats_clip`` when given (the causality check keeps the unperturbed clip's), else from ``clip``."""
     agent_p = _participant(clip, agent)
     partner = clip.partner_of(agent)
+    stats = {}
+    if config.speech_norm == "clip":
+        source = stats_clip or clip
+        stats = {"agent_audio_stats": clip_audio_stats(source.participant(agent).audio),
+                 "user_audio_stats": clip_audio_stats(source.partner_of(agent).audio) if partner else None}
     frames = config.frames_per_turn(clip.fps)
     return StreamContext(
         clip_id=clip.clip_id, agent=agent, user=partner.name if partner else None, fps=clip.fps,
         sample_rate=clip.sample_rate, frames_per_turn=frames,
         samples_per_turn=config.samples_per_turn(clip.sample_rate), context_turns=config.context,
         num_turns=clip.num_frames // frames, seed=derive_seed(config.seed, clip.clip_id, agent),
-        agent_identity=agent_p.identity)
+        agent_identity=agent_p.identity, speech_norm=config.speech_norm, **stats)
 
 
-def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig) -> StreamOutput:
-    """Run ``model`` over one direction of ``clip`` (``agent`` generated, its partner the user)."""
-    ctx = stream_context(clip, agent, config)
+def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig,
+                 stats_clip: DyadicClip | None = None) -> StreamOutput:
+    """Run ``model`` over one direction of ``clip`` (``agent`` generated, its partner the user);
+    ``stats_clip``: see :func:`stream_context`."""
+    ctx = stream_context(clip, agent, config, stats_clip)
     stem = f"{clip.clip_id}_{agent}"
     if ctx.num_turns == 0:
         raise InputError(stem, f"clip has {clip.num_frames} frames, shorter than one turn "
