@@ -79,6 +79,9 @@ EVALUATORS.add("stygazetalk-style", "models.stygazetalk.evaluator:load_style_eva
 # the split folder ``root`` itself (ClipSource.single_split), else the dataset's test split ----------
 DATASETS.add("synthetic", "dyadbench.datasets.synthetic:open_split",
              "Embedded synthetic dyadic-conversation corpus (generated on first use, cached). Default.")
+DATASETS.add("synthetic-v2", "dyadbench.datasets.synthetic:open_split_v2",
+             "Embedded synthetic corpus v2: v1 plus conversational dynamics over many seconds (shared mood, "
+             "entrainment, listener engagement, nod excitation); generated on first use, cached")
 DATASETS.add("dualtalk", "dyadbench.datasets.dualtalk:open_split",
              "DualTalk folders train/ test/ ood/ with <clip>_speaker{1,2}.{wav,npz}")
 DATASETS.add("l2l", "dyadbench.datasets.l2l:open_split",
@@ -113,6 +116,12 @@ MODELS.add("timar", "models.timar.registry:build_timar",
            "TIMAR: turn-level interleaved masked autoregression with a diffusion head", ("reference",))
 MODELS.add("timar-stream", "models.timar.registry:build_timar_stream",
            "TIMAR streaming-native variant: per-turn sliding band, exact KV cache", ("reference",))
+MODELS.add("dualtalk", "models.dualtalk.registry:build_dualtalk",
+           "DualTalk under progressive-context streaming (window of min(t, n) + 1 turns, current turn kept)",
+           ("reference",))
+MODELS.add("dualtalk-offline", "models.dualtalk.registry:build_dualtalk_offline",
+           "DualTalk over the whole clip at once (the published DualTalk protocol; recorded offline)",
+           ("reference",))
 MODELS.add("sfms", "models.sfms.registry:build_sfms",
            "SFMS: sparse keyframe tokenizer + listening-head predictor", ("reference",))
 MODELS.add("stygazetalk", "models.stygazetalk.registry:build_stygazetalk",

@@ -9,6 +9,7 @@ from dyadbench.cli.lazy import lazy_group
 TRAINERS: dict[str, tuple[str, str]] = {
     "timar": ("models.timar.cli:train_timar", "Faithful TIMAR (tiny/base/large)."),
     "timar-stream": ("models.timar.cli:train_timar_stream", "Streaming-native TIMAR variant."),
+    "dualtalk": ("models.dualtalk.cli:train_dualtalk", "DualTalk, log-mel small variant."),
     "sfms-tokenizer": ("models.sfms.cli:train_tokenizer", "SFMS stage 1: sparse keyframe tokenizer."),
     "sfms": ("models.sfms.cli:train_predictor", "SFMS stage 2: listening-head predictor."),
     "stygazetalk-style": ("models.stygazetalk.cli:train_style_encoder",
