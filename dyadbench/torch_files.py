@@ -55,7 +55,9 @@ def load_tensors_only(path: str | Path, *, allowed_globals: Iterable = (), what:
 
 def _why_unreadable(exc: Exception, what: str) -> str:
     text = str(exc)
-    refused = re.search(r"Unsupported global: GLOBAL ([\w.]+)", text)
+    # torch names a refused global as "Unsupported global: GLOBAL x.y" or, for a blocked module such as
+    # os/posix, "unsupported GLOBAL posix.system whose module posix is blocked"
+    refused = re.search(r"unsupported (?:global: )?GLOBAL ([\w.]+)", text, flags=re.IGNORECASE)
     if refused:
         return (f"refused to load this {what}: its pickle needs {refused.group(1)}, which is not part of the "
                 f"format (loading never runs code from a checkpoint; weights_only=True)")
