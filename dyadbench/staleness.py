@@ -45,9 +45,9 @@ REPO = Path(__file__).resolve().parents[1]
 def _embedded_roots() -> dict[str, Callable[[], Path]]:
     """Where each embedded corpus keeps its generated splits (imported lazily: keeps --help light)."""
     from dyadbench.datasets.synthetic_gaze import synthetic_root  # noqa: PLC0415
-    from dyadbench.datasets.synthetic import corpus_root  # noqa: PLC0415
+    from dyadbench.datasets.synthetic import corpus_root, corpus_root_v2  # noqa: PLC0415
 
-    return {"synthetic": corpus_root, "synthetic-gaze": synthetic_root}
+    return {"synthetic": corpus_root, "synthetic-v2": corpus_root_v2, "synthetic-gaze": synthetic_root}
 
 
 class Unavailable(Exception):

@@ -25,7 +25,7 @@ from dyadbench.registry import DATASETS
 #: Splits ``sweep`` runs by default (on a dataset root or the embedded corpus).
 SWEEP_SPLITS = ("test", "ood")
 #: The adapter reading the files of an embedded corpus from a folder on disk (``--train DIR`` with it).
-ON_DISK = {"synthetic": "dualtalk", "synthetic-gaze": "gaze"}
+ON_DISK = {"synthetic": "dualtalk", "synthetic-v2": "dualtalk", "synthetic-gaze": "gaze"}
 
 
 def open_evaluated(dataset: str, data: Path | None, split: str | None) -> ClipSource:
