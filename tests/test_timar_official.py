@@ -90,8 +90,8 @@ def test_sampler_schedule_is_the_released_five_step_respacing(converted, fixture
     assert d.timestep_map.tolist() == outputs["sched_timestep_map"].tolist() == [0, 250, 500, 749, 999]
     np.testing.assert_allclose(d.betas, outputs["sched_betas"], rtol=1e-12, atol=0)
     np.testing.assert_allclose(d.alphas_cumprod, outputs["sched_alphas_cumprod"], rtol=1e-12, atol=0)
-    tables = {"posterior_log_var": "sched_posterior_log_variance_clipped", "posterior_coef1": "sched_posterior_mean_coef1",
-              "posterior_coef2": "sched_posterior_mean_coef2"}
+    tables = {"posterior_log_var": "sched_posterior_log_variance_clipped",
+              "posterior_coef1": "sched_posterior_mean_coef1", "posterior_coef2": "sched_posterior_mean_coef2"}
     for ours, theirs in tables.items():  # float32 tables, as the release casts them when sampling
         np.testing.assert_allclose(d._tables[ours].numpy(), outputs[theirs].astype(np.float32), rtol=0, atol=0)
 
@@ -132,3 +132,17 @@ def test_factory_heads_and_unknown_factories():
     assert (cfg.dim, cfg.depth, cfg.heads, cfg.token_dim, cfg.speech_dim, cfg.max_turns) == (24, 3, 3, 40, 24, 8)
     assert (cfg.head_width, cfg.head_blocks, cfg.motion_norm, cfg.sampling_steps) == (40, 3, "none", 5)
     assert official.FACTORY_HEADS == {"timar_base": 12, "timar_large": 16, "timar_huge": 16}
+
+
+def test_every_turn_nulling_is_a_named_option_that_moves_the_unconditional_branch(monkeypatch, fixture_arrays):
+    inputs, outputs = fixture_arrays
+    monkeypatch.setitem(official.FACTORY_HEADS, "timar_tiny_b", HEADS)
+    stream = build_timar(ModelOptions(weights=CHECKPOINT, cfg_scale=3.0, extra={
+        "wav2vec_weights": str(WAV2VEC), "cache": False, "guidance_null": "every-turn"}))
+    seen = []
+    monkeypatch.setattr(stream.model, "sample_frames", lambda z, *a, **k: seen.append(z) or torch.zeros(F, 56))
+    stream_agent(stream, fixture_clip(inputs), "speaker2", ProtocolConfig(context=7, speech_norm="clip"))
+    z = torch.stack(seen).double().numpy()
+    assert np.abs(z[0, 1] - outputs["z_uncond"][0]).max() < 1e-5  # one turn: the same tokens are nulled
+    assert np.abs(z[:, 1] - outputs["z_uncond"]).max() > 0.1
+    assert stream.info.config["guidance_null"] == "every-turn" and stream.info.version.endswith("+null-every-turn")

@@ -88,8 +88,8 @@ def variant_label(*, turn_seconds: float = _DEFAULT.turn_seconds, tail: str = _D
 
     Used to keep runs of one model apart that differ only in these settings: the sweep's result file
     names (``<model>@<label>.json``) and the model labels of the wide leaderboards, e.g.
-    ``cfg2+seed1`` for guidance scale 2 with run seed 1 (``speech-clip`` for ``speech_norm = clip``). Context is not part of it (it has its own
-    folder and column).
+    ``cfg2+seed1`` for guidance scale 2 with run seed 1 (``speech-clip`` for ``speech_norm = clip``).
+    Context is not part of it (it has its own folder and column).
     """
     parts = []
     if turn_seconds != _DEFAULT.turn_seconds:
