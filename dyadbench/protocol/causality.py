@@ -70,8 +70,8 @@ def check_causal(model_factory: Callable[[], StreamingModel], clip: DyadicClip, 
     oracle = bool(model.info.oracle)
     changed = perturb_after(clip, (turn + 1) * frames, agent=None if oracle else agent,
                             agent_from=int(model.info.seed_frames), seed=config.seed)
-    perturbed = stream_agent(model_factory(), changed, agent, config,
-                             stats_clip=clip if config.speech_norm == "clip" else None).motion
+    fixed_stats = {"stats_clip": clip} if config.speech_norm == "clip" else {}
+    perturbed = stream_agent(model_factory(), changed, agent, config, **fixed_stats).motion
 
     upto = (turn + 1) * frames
     a, b = reference[:upto], perturbed[:upto]
