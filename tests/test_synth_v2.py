@@ -10,6 +10,7 @@ from dyadbench.datasets import synthetic
 from dyadbench.registry import DATASETS
 from dyadbench.synth import corpus, corpus_v2, writers, writers_v2
 from dyadbench.synth.conversation import Dynamics
+from tests.test_synth_writers import small_corpus  # noqa: F401  (a cache with 2-dialogue val splits)
 
 # sha256 of (motion, audio) bytes of both speakers of two 8-s v1 clips (seed 0), recorded before v2 existed
 V1_CLIPS = {("test", 0): "afe045ecb820e1b9096c4142e8cf33604554aab0a44601525929801f6f1ffde0",
@@ -51,18 +52,11 @@ def test_switches_change_only_their_mechanism():
     assert off.meta["generator"]["dynamics"] == {k: False for k in Dynamics().as_dict()}
 
 
-@pytest.fixture
-def small_corpora(tmp_path, monkeypatch):
-    monkeypatch.setenv("DYADBENCH_CACHE", str(tmp_path / "cache"))
-    monkeypatch.setitem(writers.SPLIT_SIZES, "val", 2)
-    return tmp_path / "cache"
-
-
-def test_v2_opens_as_its_own_dataset_from_its_own_cache_folder(small_corpora, capsys):
+def test_v2_opens_as_its_own_dataset_from_its_own_cache_folder(small_corpus, capsys):
     source = DATASETS.load("synthetic-v2")(None, "val")
     err = capsys.readouterr().err
     assert "generating the synthetic-v2 val split" in err
-    assert source.root == small_corpora / "synthetic-v2" / "val" and source.dataset == "synthetic-v2"
+    assert source.root == small_corpus / "synthetic-v2" / "val" and source.dataset == "synthetic-v2"
     generated = source.generated_by()
     assert generated["version"] == 2 and generated["generator_digest"] == writers_v2.generator_digest()
     assert writers_v2.generator_digest() != writers.generator_digest()
@@ -70,7 +64,7 @@ def test_v2_opens_as_its_own_dataset_from_its_own_cache_folder(small_corpora, ca
     original = corpus_v2.make_clip("val", 1, seed=synthetic.DEFAULT_SEED)
     assert arrays_digest(clip) == arrays_digest(original)
     v1 = DATASETS.load("synthetic")(None, "val")  # v1 beside it, untouched
-    assert v1.root == small_corpora / "synthetic-v1" / "val" and v1.generated_by()["version"] == 1
+    assert v1.root == small_corpus / "synthetic-v1" / "val" and v1.generated_by()["version"] == 1
     assert arrays_digest(v1.load(v1.clip_ids()[1])) != arrays_digest(clip)
     capsys.readouterr()
     DATASETS.load("synthetic-v2")(None, "val")

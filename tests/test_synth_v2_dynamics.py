@@ -1,5 +1,8 @@
 """Each long-range mechanism of the v2 corpus is measurable in generated clips, and its effect disappears
-when its switch is off (same seed: every other random draw is unchanged)."""
+when its switch is off (same seed: every other random draw is unchanged; the other mechanisms are off
+in both runs)."""
+
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -11,6 +14,13 @@ from dyadbench.synth.corpus_v2 import directions, make_clips
 
 SPEAKERS = ("speaker1", "speaker2")
 FPS = 25
+
+
+def switched(mechanism, clips, seed, duration_s):
+    """(on, off): the same clips with only ``mechanism`` of the v2 dynamics on, and with none on."""
+    off = Dynamics(mood=False, contagion=False, engagement=False, nod_excitation=False)
+    on = replace(off, **{mechanism: True})
+    return tuple(make_clips("test", clips, seed=seed, duration_s=duration_s, dynamics=d) for d in (on, off))
 
 
 def mode(clip, name, direction):
@@ -25,9 +35,7 @@ def autocorr(x, lag):
 
 @pytest.fixture(scope="module")
 def mood_pair():
-    quiet = dict(contagion=False, engagement=False, nod_excitation=False)
-    return (make_clips("test", 4, seed=3, duration_s=60.0, dynamics=Dynamics(**quiet)),
-            make_clips("test", 4, seed=3, duration_s=60.0, dynamics=Dynamics(mood=False, **quiet)))
+    return switched("mood", 4, seed=3, duration_s=60.0)
 
 
 def test_shared_mood_moves_both_faces_slowly(mood_pair):
@@ -63,9 +71,7 @@ def test_shared_mood_is_heard_in_both_voices(mood_pair):
 
 @pytest.fixture(scope="module")
 def contagion_pair():
-    quiet = dict(mood=False, engagement=False, nod_excitation=False)
-    return (make_clips("test", 16, seed=1, duration_s=120.0, dynamics=Dynamics(**quiet)),
-            make_clips("test", 16, seed=1, duration_s=120.0, dynamics=Dynamics(contagion=False, **quiet)))
+    return switched("contagion", 16, seed=1, duration_s=120.0)
 
 
 def listening_head_energy(clip, name, window):
@@ -100,9 +106,7 @@ def test_head_energy_converges_toward_the_partner_over_the_dialogue(contagion_pa
 
 @pytest.fixture(scope="module")
 def engagement_pair():
-    quiet = dict(mood=False, contagion=False, nod_excitation=False)
-    return (make_clips("test", 8, seed=2, duration_s=60.0, dynamics=Dynamics(**quiet)),
-            make_clips("test", 8, seed=2, duration_s=60.0, dynamics=Dynamics(engagement=False, **quiet)))
+    return switched("engagement", 8, seed=2, duration_s=60.0)
 
 
 def engagement_rise(clips):
@@ -128,9 +132,7 @@ def test_listener_engagement_grows_with_how_long_the_partner_has_talked(engageme
 
 @pytest.fixture(scope="module")
 def nod_pair():
-    quiet = dict(mood=False, contagion=False, engagement=False)
-    return (make_clips("test", 12, seed=4, duration_s=40.0, dynamics=Dynamics(**quiet)),
-            make_clips("test", 12, seed=4, duration_s=40.0, dynamics=Dynamics(nod_excitation=False, **quiet)))
+    return switched("nod_excitation", 12, seed=4, duration_s=40.0)
 
 
 def nod_rate_after(clips, rich):
