@@ -82,6 +82,7 @@ def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | 
                              "temperature": temperature, "clamp_variance": clamp_variance,
                              "guidance_null": guidance_null, "format": meta.get("format", "native"),
                              "converted_from": meta.get("converted_from"),
+                             "wav2vec_weights": options.extra.get("wav2vec_weights"),
                              "data_digest": meta.get("data_digest"),
                              "train_epochs": meta.get("epoch"), "train_command": meta.get("command")})
     frontend = make_frontend(model.cfg, wav2vec_weights=options.extra.get("wav2vec_weights"))
