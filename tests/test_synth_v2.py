@@ -6,6 +6,7 @@ import hashlib
 import numpy as np
 import pytest
 
+from dyadbench.cli.eval import resolve_dataset
 from dyadbench.datasets import synthetic
 from dyadbench.registry import DATASETS
 from dyadbench.synth import corpus, corpus_v2, writers, writers_v2
@@ -69,3 +70,4 @@ def test_v2_opens_as_its_own_dataset_from_its_own_cache_folder(small_corpus, cap
     capsys.readouterr()
     DATASETS.load("synthetic-v2")(None, "val")
     assert "generating" not in capsys.readouterr().err  # cached
+    assert resolve_dataset(None, "synthetic-v2") == "synthetic-v2"  # eval/sweep take it without --data
