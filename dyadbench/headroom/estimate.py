@@ -24,6 +24,7 @@ from dyadbench.errors import InputError
 from dyadbench.headroom.features import MAX_CONTEXT, Direction, columns, direction_features
 from dyadbench.headroom.ridge import Moments, RidgeFit, fit
 from dyadbench.headroom.scores import KEYS, prediction_scores, scaled_means
+from dyadbench.provenance import split_digest
 
 CONTEXTS = tuple(range(MAX_CONTEXT + 1))
 RESAMPLES = 1000
@@ -91,14 +92,19 @@ def relative_change(rows: dict[int, list[dict[str, float]]], groups: list[str], 
 def measure(open_split: Callable[[str], ClipSource], clips: dict[str, int], *, eval_splits: tuple[str, ...],
             seed: int = 0, progress: bool = False) -> dict:
     """The headroom of one corpus: fit on ``clips['train']`` train and ``clips['val']`` val clips, score on
-    ``clips[split]`` clips of each of ``eval_splits``. ``open_split(split)`` opens a split of the corpus."""
-    train = moments(open_split("train"), clips["train"], progress)
-    val = moments(open_split("val"), clips["val"], progress)
+    ``clips[split]`` clips of each of ``eval_splits``. ``open_split(split)`` opens a split of the corpus. Each
+    split's data is recorded as eval results record it: the digest of the clips used
+    (:func:`dyadbench.provenance.split_digest`) and, for a generated corpus, its generator's identity."""
+    sources = {s: open_split(s) for s in ("train", "val", *eval_splits)}
+    train = moments(sources["train"], clips["train"], progress)
+    val = moments(sources["val"], clips["val"], progress)
     fits = fit_contexts(train, val)
     return {
-        "clips": {s: clips[s] for s in ("train", "val", *eval_splits)},
+        "clips": {s: clips[s] for s in sources},
+        "data": {s: {"digest": split_digest(source, source.clip_ids()[:clips[s]]),
+                     "generated_by": source.generated_by()} for s, source in sources.items()},
         "rows": {"train": train.n, "val": val.n},
         "fit": {str(n): {"penalty": f.penalty, "history_ratio": f.history_ratio, "val_mse": f.val_mse}
                 for n, f in fits.items()},
-        "splits": {s: score_split(fits, open_split(s), clips[s], seed=seed, progress=progress) for s in eval_splits},
+        "splits": {s: score_split(fits, sources[s], clips[s], seed=seed, progress=progress) for s in eval_splits},
     }
