@@ -160,7 +160,8 @@ def test_result_file_round_trips(history_result, tmp_path, monkeypatch):
     assert out.with_suffix(".png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     text = md_path.read_text()
     assert "toy-history: P-FD exp" in text and "target met" in text
-    assert "| 7 | " in text and "Regenerate: `python benchmarks/bench_context_headroom.py --datasets toy-history`" in text
+    assert "| 7 | " in text
+    assert "Regenerate: `python benchmarks/bench_context_headroom.py --datasets toy-history`" in text
 
 
 def test_render_of_a_missing_result_is_one_error_line(tmp_path, capsys, monkeypatch):

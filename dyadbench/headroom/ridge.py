@@ -5,17 +5,17 @@ A = Σ z zᵀ, B = Σ z yᵀ, c = Σ y ∘ y (per output column) and the row cou
 validation rows are ever held in memory together.
 
 Fit on the first m columns (features standardised with the train mean μ and standard deviation σ; the
-intercept is not penalised):
+intercept is not penalised; the history columns, from ``history_from`` on, penalised r times more):
 
-.. math:: \\hat w(\\lambda) = \\arg\\min_w \\tfrac{1}{N}\\lVert Y - \\bar y - X_s w\\rVert^2 + \\lambda\\lVert w\\rVert^2
-          = V\\,\\mathrm{diag}\\big(1/(e_i+\\lambda)\\big)\\,V^\\top \\tfrac{1}{N} X_s^\\top (Y - \\bar y)
+.. math:: \\hat w(\\lambda, r) = \\arg\\min_w \\tfrac{1}{N}\\lVert Y - \\bar y - X_s w\\rVert^2
+          + \\lambda\\, w^\\top R\\, w, \\qquad R = \\mathrm{diag}(1_{\\text{current}}, r\\,1_{\\text{history}})
 
-with :math:`X_s^\\top X_s / N = V \\mathrm{diag}(e) V^\\top` (the correlation matrix of the features), solved for
-every λ of :data:`LAMBDAS` from one eigendecomposition. The history columns (from ``history_from`` on) can
-carry a stronger penalty, r·λ with r in :data:`HISTORY_RATIOS` (their standardised columns divided by √r, one
-eigendecomposition per r), so that history features that carry nothing can be shrunk away without also
-shrinking the current turn's. Each output column has its own solution, so the penalty is chosen per motion
-component (exp, jaw, pose): the (r, λ) with the smallest validation squared error summed over that
+With the history columns of X_s divided by √r (X_r), :math:`X_r^\\top X_r / N = V \\mathrm{diag}(e) V^\\top` and
+:math:`\\hat v = V \\mathrm{diag}(1/(e_i+\\lambda)) V^\\top X_r^\\top (Y - \\bar y) / N` (then
+:math:`\\hat w = R^{-1/2}\\hat v`): one eigendecomposition per r gives every λ of :data:`LAMBDAS`; r ranges
+over :data:`HISTORY_RATIOS`, so history features that carry nothing can be shrunk away without shrinking the
+current turn's (or the reverse). Each output column has its own solution, so (r, λ) is chosen per motion
+component (exp, jaw, pose): the pair with the smallest validation squared error summed over that
 component's columns, computed from the validation moments:
 
 .. math:: \\mathrm{SSE}_j = c_j - 2\\,w_j^\\top B_{:,j} + w_j^\\top A\\,w_j
