@@ -38,7 +38,7 @@ def train_dualtalk(data: Path | None, clips: int | None, steps: int, batch_size:
 
     \b
     Reproduces the shipped checkpoint (models/dualtalk/checkpoints/dualtalk-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train dualtalk --steps 4000 --seed 0 \\
+      OMP_NUM_THREADS=1 dyadbench train dualtalk --steps 2000 --lr 5e-4 --seed 0 \\
           --export models/dualtalk/checkpoints/dualtalk-tiny.pt
     """
     from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)

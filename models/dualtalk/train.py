@@ -1,8 +1,10 @@
 """Training the log-mel DualTalk (one process, seeded).
 
 Loss as released: MSE(exp) + MSE(jaw) + MSE(neck) + MSE(velocity), velocity = frame-to-frame difference
-of all 56 coefficients, on raw (unnormalised) motion. Adam (lr 1e-4 as released unless given), no
-weight decay, no EMA. Each step draws one batch of random windows (:class:`models.dualtalk.data.WindowSampler`).
+of all 56 coefficients, on raw (unnormalised) motion. Adam, no weight decay, no EMA; lr 1e-4 as released
+by default. The shipped ``tiny`` uses 5e-4: with a CPU budget of a few thousand steps (not 1000 epochs),
+300 steps on 200 train clips reached a mean exp MSE of 0.339 at 5e-4 against 0.354 at 1e-4 (jaw 0.0025
+vs 0.0099, velocity 0.038 vs 0.055). Each step draws one batch of random windows (:class:`models.dualtalk.data.WindowSampler`).
 The log-mel standardisation statistics are measured on sampled training windows before the first step
 and stored as model buffers. ``<out>/checkpoint.pt`` (weights, config, meta with the command, data digest
 and loss history) is rewritten every ``save_every`` steps and at the end; at the end ``export`` too.
