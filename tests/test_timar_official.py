@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 import torch
 
-from dyadbench.errors import ConfigError, InputError
+from dyadbench.errors import ConfigError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent

@@ -45,7 +45,7 @@ from dyadbench import __version__
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.torch_files import NAMESPACE_WITH_ARRAYS, load_tensors_only, numpy_array_globals
 from dyadbench.training.checkpoint import file_digest
-from models.timar.config import NUM_SPECIAL_TOKENS, TimarConfig
+from models.timar.config import TimarConfig
 from models.timar.model import TimarModel
 
 OFFICIAL_KEYS = frozenset({"model", "model_ema", "optimizer", "epoch", "scaler", "args"})
