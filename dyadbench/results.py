@@ -66,6 +66,8 @@ class ProtocolRecord:
     cfg_scale: float
     seed: int
     speech_norm: str = "window"  # "clip": waveforms normalised with whole-clip statistics (not strictly causal)
+    perturbations: str = ""  # input perturbations, "+"-joined (dyadbench.protocol.perturbations.describe)
+    noise_scale: float | None = None  # motion-noise scale of a perturbed run (None: none used)
 
 
 @dataclass(frozen=True)
@@ -178,7 +180,8 @@ def _optional_object(d: dict, key: str, source: str | Path) -> dict | None:
 
 
 _ALLOWED = {str: (str,), int: (int,), float: (int, float), bool: (bool,), dict: (dict,),
-            str | None: (str, type(None)), int | None: (int, type(None)), dict | None: (dict, type(None))}
+            str | None: (str, type(None)), int | None: (int, type(None)), dict | None: (dict, type(None)),
+            float | None: (int, float, type(None))}
 
 
 def _numbers(value: object, source: str | Path, key: str) -> dict[str, float]:
@@ -236,10 +239,14 @@ RESULT_COLUMNS = ("model", "oracle", "flags", "dataset", "split", "protocol", "c
 
 
 def results_frame(paths: Iterable[str | Path]) -> pd.DataFrame:
-    """Long table of mean metrics: one row per (result file, metric), columns :data:`RESULT_COLUMNS`."""
+    """Long table of mean metrics: one row per (result file, metric), columns :data:`RESULT_COLUMNS`.
+
+    Runs with perturbed inputs are left out: they are the robustness axis (``dyadbench robustness``)."""
     rows = []
     for path in result_files(paths):
         r = load_result(path)
+        if r.protocol.perturbations:
+            continue
         for metric, raw in r.metrics.items():
             rows.append({"model": r.model.name, "oracle": bool(r.model.oracle), "flags": r.flags(),
                          "dataset": r.data.dataset,

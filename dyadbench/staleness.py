@@ -31,6 +31,7 @@ from typing import Callable
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.config import ProtocolConfig
+from dyadbench.protocol.perturbations import parse_all
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
 from dyadbench.protocol.run_configuration import differences, requested_configuration
 from dyadbench.protocol.train_split import TrainSplit, train_record
@@ -85,7 +86,8 @@ def recorded_run(result: EvalResult) -> RecordedRun:
     split a fitted model used; for other data the train split is unknown)."""
     p, recorded = result.protocol, result.configuration
     config = ProtocolConfig(turn_seconds=p.turn_seconds, context=p.context, tail=p.tail,
-                            history_agent=p.history_agent, seed=p.seed)
+                            history_agent=p.history_agent, seed=p.seed,
+                            perturbations=parse_all(p.perturbations), noise_scale=p.noise_scale)
     if recorded is not None:
         dataset, root, clips = recorded["dataset"], recorded["root"], recorded["clips"]
         train = recorded["train"] or {"dataset": dataset, "root": root}

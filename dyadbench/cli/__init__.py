@@ -25,6 +25,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "report": ("dyadbench.cli.report:report", "Write the results page (RESULTS.md) from result and benchmark files."),
     "compare": ("dyadbench.cli.compare:compare_command", "Paired differences between two runs, with uncertainty."),
     "plot": ("dyadbench.cli.plot:plot", "Plot trajectories and metric-vs-context curves."),
+    "robustness": ("dyadbench.cli.robustness:robustness",
+                   "Robustness sweep: perturbed partner motion and speech, degradation table and plot."),
     "weights": ("dyadbench.cli.weights:weights", "Convert released checkpoints into native dyadbench files."),
     "models": ("dyadbench.cli.listing:models", "List registered models and baselines."),
     "datasets": ("dyadbench.cli.listing:datasets", "List registered datasets and metric suites."),

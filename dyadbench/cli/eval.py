@@ -12,7 +12,7 @@ from typing import Callable
 import click
 
 from dyadbench import atomic
-from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED
+from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec
 from dyadbench.cli.splits import ON_DISK, open_splits
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
@@ -58,7 +58,8 @@ def data_options(f: Callable) -> Callable:
 
 
 def protocol_options(f: Callable) -> Callable:
-    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights / --wav2vec / --speech-norm."""
+    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights / --wav2vec / --speech-norm /
+    --perturb / --noise-scale."""
     options = [
         click.option("--turn-seconds", default=1.0, show_default=True, type=POSITIVE,
                      help="Turn length in seconds (must hold whole frames and samples; 1 s = 25 frames)."),
@@ -86,6 +87,16 @@ def protocol_options(f: Callable) -> Callable:
                           "turns handed over) or clip (the whole clip's mean and variance, as the released "
                           "TIMAR and DualTalk evaluations and their published numbers; reads future audio, "
                           "so the run is recorded as not strictly causal)."),
+        click.option("--perturb", "perturb", multiple=True, type=PerturbationSpec(),
+                     help="Corrupt what the model receives (never the ground truth), repeatable: "
+                          "TARGET:KIND:OCCUPANCY[:BURST_S[:SNR_DB]] with TARGET partner-motion (KIND drop, gaussian, "
+                          "laplace, uniform), partner-speech or agent-speech (silence, noise); bursts of mean "
+                          "BURST_S seconds (default 1) cover OCCUPANCY of the stream; speech noise at SNR_DB "
+                          "(default 60). E.g. partner-motion:drop:0.3, agent-speech:silence:1:4. Recorded; the "
+                          "result file gets a variant label."),
+        click.option("--noise-scale", "noise_scale", default=None, type=POSITIVE,
+                     help="Motion-noise scale sigma for --perturb partner-motion noise [default: the mean "
+                          "per-dimension std of the train split's motion, rounded to 3 decimals, as released]."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
@@ -204,7 +215,8 @@ def is_predictions_folder(folder: Path) -> bool:
               help="Replace --out even when it holds files that are not a previous eval output.")
 def eval_command(model: str, split: str | None, context: int, turn_seconds: float, tail: str,
                  history_agent: str, seed: int, cfg_scale: float, weights: Path | None, wav2vec: Path | None,
-                 speech_norm: str, data: Path | None, dataset: str | None, train: Path | None,
+                 speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
+                 dataset: str | None, train: Path | None,
                  allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
                  style_from: str | None, out: Path | None, force: bool) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
@@ -219,7 +231,7 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
     """
     MODELS.get(model)
     config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
-                            seed=seed, speech_norm=speech_norm)
+                            seed=seed, speech_norm=speech_norm, perturbations=perturb, noise_scale=noise_scale)
     name = resolve_dataset(data, dataset)
     check_cache()
     given = None if out is None else eval_output(out, force).check()  # before reading or digesting any data

@@ -64,3 +64,21 @@ class IntList(click.ParamType):
         if low:
             self.fail(f"{', '.join(map(str, low))} not in the range x>={self.min}.", param, ctx)
         return numbers
+
+
+class PerturbationSpec(click.ParamType):
+    """One input perturbation ``TARGET:KIND:OCCUPANCY[:BURST_S[:SNR_DB]]``
+    (:func:`dyadbench.protocol.perturbations.parse`), e.g. ``partner-motion:drop:0.3``."""
+
+    name = "perturbation"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> Any:
+        from dyadbench.errors import ConfigError  # noqa: PLC0415
+        from dyadbench.protocol.perturbations import Perturbation, parse  # noqa: PLC0415
+
+        if isinstance(value, Perturbation):
+            return value
+        try:
+            return parse(value)
+        except ConfigError as exc:
+            self.fail(str(exc), param, ctx)

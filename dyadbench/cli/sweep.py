@@ -2,7 +2,9 @@
 
 Each run writes ``OUT/<dataset>/<split>/n<context>/<model>.json``, or ``<model>@<variant>.json`` when a
 protocol setting differs from the default (e.g. ``timar@cfg2.json`` for ``--cfg-scale 2``; see
-:func:`dyadbench.protocol.config.variant_label`), so variants never overwrite or skip each other. A run is
+:func:`dyadbench.protocol.config.variant_label`; ``mime@partner-motion-drop0.3.json`` for ``--perturb
+partner-motion:drop:0.3``, :func:`dyadbench.protocol.perturbations.variant_part`), so variants never overwrite
+or skip each other. A run is
 skipped (unless --force) when its file holds a valid result whose recorded configuration
 (:mod:`dyadbench.protocol.run_configuration`: data and its content digest, --clips, settings, model
 version and weights digest, train split) equals the requested one, so adding a model's rows never
@@ -32,6 +34,7 @@ from dyadbench.cli.splits import sweep_splits
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import check_cache, check_folder, owned_folder
 from dyadbench.protocol.config import ProtocolConfig, variant_label
+from dyadbench.protocol.perturbations import variant_part
 from dyadbench.protocol.run_configuration import differences
 from dyadbench.registry import MODELS
 from dyadbench.results import EvalResult, load_result, result_files
@@ -39,8 +42,8 @@ from dyadbench.staleness import STALE, Checker, RecordedRun, open_split, recorde
 
 #: Options describing which runs to make; ``--stale`` takes them from each result file and refuses them.
 RUN_OPTIONS = ("models", "splits", "context_list", "turn_seconds", "tail", "history_agent", "seed", "cfg_scale",
-               "weights", "wav2vec", "speech_norm", "data", "dataset", "train", "allow_train_overlap", "clips",
-               "keep_predictions", "per_clip", "force")
+               "weights", "wav2vec", "speech_norm", "perturb", "noise_scale", "data", "dataset", "train",
+               "allow_train_overlap", "clips", "keep_predictions", "per_clip", "force")
 
 
 def result_path(out: Path, dataset: str, split: str, context: int, model: str, variant: str = "") -> Path:
@@ -161,7 +164,7 @@ def _csv(value: str, what: str) -> list[str]:
 @click.pass_context
 def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
           tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None,
-          wav2vec: Path | None, speech_norm: str, data: Path | None,
+          wav2vec: Path | None, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
           threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
           stale: bool) -> None:
@@ -200,23 +203,43 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
         split = source.split
         for context in context_list:
             config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail,
-                                    history_agent=history_agent, seed=seed, speech_norm=speech_norm)
-            variant = variant_label(turn_seconds=turn_seconds, tail=tail, history_agent=history_agent,
-                                    cfg_scale=cfg_scale, seed=seed, speech_norm=speech_norm)
+                                    history_agent=history_agent, seed=seed, speech_norm=speech_norm,
+                                    perturbations=perturb, noise_scale=noise_scale)
+            variant = run_variant(config, cfg_scale)
             for name in names:
                 path = result_path(out, dataset_name, split, context, name, variant)
-                check = reuse_check(path) if path.exists() and not force else None
                 preds = (result_path(keep_predictions, dataset_name, split, context, name, variant).with_suffix("")
                          if keep_predictions else None)
-                try:
-                    with kept_predictions(preds, force) as staging:
-                        result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
-                                         clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
-                                         extra=wav2vec_extra(wav2vec), check_configuration=check)
-                except Unchanged:
-                    click.echo(f"skip {path} (same configuration; --force re-runs)")
-                    continue
-                if preds is not None:
-                    result = predictions_at(result, preds)
-                click.echo(summary(result).splitlines()[0] + f" -> {path}")
-                save_result(result if per_clip else without_per_clip(result), path)
+                run_to_file(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
+                            clips=clips, jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
+                            per_clip=per_clip, preds=preds)
+
+
+def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
+    """The result-file variant of a run: :func:`~dyadbench.protocol.config.variant_label` of its settings,
+    then its input perturbations (:func:`dyadbench.protocol.perturbations.variant_part`)."""
+    parts = [variant_label(turn_seconds=config.turn_seconds, tail=config.tail, history_agent=config.history_agent,
+                           cfg_scale=cfg_scale, seed=config.seed, speech_norm=config.speech_norm),
+             variant_part(config.perturbations, config.noise_scale)]
+    return "+".join(p for p in parts if p)
+
+
+def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConfig, *, cfg_scale: float,
+                weights: Path | None, clips: int | None, jobs: int, threads: int | None, extra: dict, force: bool,
+                per_clip: bool, preds: Path | None = None) -> EvalResult | None:
+    """One sweep run written to ``path``; skipped (None returned) when ``path`` holds a result of the same
+    configuration and not ``force``; ``preds``: where to keep the predictions (None: not kept)."""
+    check = reuse_check(path) if path.exists() and not force else None
+    try:
+        with kept_predictions(preds, force) as staging:
+            result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
+                             clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
+                             extra=extra, check_configuration=check)
+    except Unchanged:
+        click.echo(f"skip {path} (same configuration; --force re-runs)")
+        return None
+    if preds is not None:
+        result = predictions_at(result, preds)
+    click.echo(summary(result).splitlines()[0] + f" -> {path}")
+    save_result(result if per_clip else without_per_clip(result), path)
+    return result

@@ -12,6 +12,10 @@
   ``window`` (default, causal: the audio handed over with each turn) or ``clip`` (the whole clip's
   waveform mean and variance, handed over in the stream context, as the released TIMAR and DualTalk
   evaluations normalise each clip; it reads future audio, so such runs are not strictly causal).
+- ``perturbations``: input perturbations of the robustness protocol
+  (:mod:`dyadbench.protocol.perturbations`), at most one per target and kind; ``noise_scale``: the motion
+  noise scale sigma (None: taken from the train split when a motion-noise perturbation needs it,
+  :mod:`dyadbench.protocol.noise_scale`).
 """
 
 from __future__ import annotations
@@ -19,6 +23,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 
 from dyadbench.errors import ConfigError
+from dyadbench.protocol.perturbations import Perturbation
 
 TAILS = ("truncate", "pad-last")
 HISTORY_AGENT = ("masked", "outputs")
@@ -36,6 +41,8 @@ class ProtocolConfig:
     history_agent: str = "masked"
     seed: int = 0
     speech_norm: str = "window"
+    perturbations: tuple[Perturbation, ...] = ()
+    noise_scale: float | None = None
 
     def __post_init__(self) -> None:
         if isinstance(self.context, bool) or not isinstance(self.context, int) or self.context < 0:
@@ -56,6 +63,8 @@ class ProtocolConfig:
             raise ConfigError(f"speech_norm must be one of {', '.join(SPEECH_NORMS)}, got {self.speech_norm!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, int):
             raise ConfigError(f"seed must be an integer, got {self.seed!r}")
+        _check_perturbations(tuple(self.perturbations), self.noise_scale)
+        object.__setattr__(self, "perturbations", tuple(self.perturbations))
 
     def frames_per_turn(self, fps: float) -> int:
         """Motion frames in one turn at ``fps``; a ConfigError unless that is a whole number >= 1."""
@@ -68,6 +77,18 @@ class ProtocolConfig:
 
     def to_dict(self) -> dict:
         return asdict(self)
+
+
+def _check_perturbations(perturbations: tuple, noise_scale: float | None) -> None:
+    """Perturbation objects, at most one per (target, kind); a positive finite noise scale or None."""
+    if not all(isinstance(p, Perturbation) for p in perturbations):
+        raise ConfigError(f"perturbations must be Perturbation objects, got {perturbations!r}")
+    kinds = [(p.target, p.kind) for p in perturbations]
+    if len(set(kinds)) != len(kinds):
+        raise ConfigError("at most one perturbation per target and kind (they would share their bursts)")
+    if noise_scale is not None and not (isinstance(noise_scale, (int, float)) and not isinstance(noise_scale, bool)
+                                        and 0 < noise_scale < float("inf")):
+        raise ConfigError(f"noise_scale must be a positive finite number, got {noise_scale!r}")
 
 
 def _whole(value: float, what: str, unit: str) -> int:

@@ -14,6 +14,7 @@ from __future__ import annotations
 from dyadbench.datasets.base import ClipSource
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelInfo
+from dyadbench.protocol.perturbations import describe
 from dyadbench.provenance import root_identity
 
 #: What each key is called on the command line (or in words), for :func:`differences`.
@@ -21,7 +22,7 @@ LABELS = {"model": "the model", "model_version": "the model's version", "weights
           "dataset": "--dataset", "split": "the split", "root": "--data", "data_digest": "the data's content",
           "clips": "--clips", "turn_seconds": "--turn-seconds", "context": "the context n", "tail": "--tail",
           "history_agent": "--history-agent", "cfg_scale": "--cfg-scale", "seed": "--seed",
-          "speech_norm": "--speech-norm",
+          "speech_norm": "--speech-norm", "perturbations": "--perturb", "noise_scale": "--noise-scale",
           "train": "the train split"}
 TRAIN_KEYS = ("dataset", "split", "root", "digest")
 
@@ -31,14 +32,17 @@ def requested_configuration(model_name: str, info: ModelInfo, source: ClipSource
                             train: dict | None) -> dict:
     """The canonical configuration of a run (see the module docstring); ``train``: the train split's record
     (:func:`dyadbench.protocol.train_split.train_record`). ``speech_norm`` is present only when not the default
-    ``window``, so results recorded before the setting existed still match."""
+    ``window``, and ``perturbations`` / ``noise_scale`` only for perturbed runs, so results recorded before the
+    settings existed still match."""
     speech_norm = {} if config.speech_norm == "window" else {"speech_norm": config.speech_norm}
+    perturbed = ({"perturbations": describe(config.perturbations), "noise_scale": config.noise_scale}
+                 if config.perturbations else {})
     return {"model": model_name, "model_version": info.version, "weights_digest": info.weights_digest,
             "dataset": source.dataset, "split": source.split, "root": root_identity(source), "clips": clips,
             "data_digest": data_digest, "turn_seconds": config.turn_seconds,
             "context": config.context, "tail": config.tail, "history_agent": config.history_agent,
             "cfg_scale": float(cfg_scale), "seed": config.seed,
-            "train": None if train is None else {k: train[k] for k in TRAIN_KEYS}, **speech_norm}
+            "train": None if train is None else {k: train[k] for k in TRAIN_KEYS}, **speech_norm, **perturbed}
 
 
 def differences(recorded: dict, requested: dict) -> list[str]:

@@ -39,7 +39,9 @@ from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions, OfflineModel, StreamingModel
+from dyadbench.protocol.noise_scale import resolve_noise_scale
 from dyadbench.protocol.offline import run_offline
+from dyadbench.protocol.perturbations import describe, perturbed_inputs
 from dyadbench.protocol.run_configuration import requested_configuration
 from dyadbench.protocol.streaming import StreamOutput, stream_agent
 from dyadbench.protocol.train_split import bind_train_split, overlap_notes, train_record
@@ -87,7 +89,8 @@ def _stream_clip(model, source: ClipSource, clip_id: str, config: ProtocolConfig
     out = []
     for p in clip.agent_participants:
         partner = clip.partner_of(p.name)
-        result = run_direction(model, clip, p.name, config)
+        seen = perturbed_inputs(clip, p.name, config.perturbations, config.seed, config.noise_scale)
+        result = run_direction(model, seen, p.name, config)
         out.append(_Streamed(result, ScoreItem(
             stem=result.stem, pred=result.motion, gt=np.asarray(p.motion, np.float32),
             partner=np.asarray(partner.motion, np.float32) if partner is not None else None,
@@ -158,6 +161,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         set_threads(threads)
     if model.info.layout != layout:
         raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion; the split is {layout}")
+    config = resolve_noise_scale(config, options.train_split)
     train = train_record(options.train_split)
     data_digest = split_digest(source, ids)
     requested = requested_configuration(model_name, model.info, source, clips, config, options.cfg_scale,
@@ -200,10 +204,11 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         protocol=ProtocolRecord(name=protocol_name, turn_seconds=config.turn_seconds, context=config.context,
                                 tail=config.tail, history_agent=config.history_agent,
                                 cfg_scale=float(options.cfg_scale), seed=config.seed,
-                                speech_norm=config.speech_norm),
+                                speech_norm=config.speech_norm, perturbations=describe(config.perturbations),
+                                noise_scale=config.noise_scale),
         suite=suite, metrics=dict(report.metrics), scaled=report.scaled, scaling=report.scaling,
         per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
-        notes=overlap_notes(train) + speech_norm_notes(config) + list(report.notes)
+        notes=overlap_notes(train) + speech_norm_notes(config) + perturbation_notes(config) + list(report.notes)
         + ([f"scores reused: this process already scored byte-identical predictions "
             f"(sha256 {reused[:16]})"] if reused else []),
         predictions=None if temporary else str(pred_dir),
@@ -220,6 +225,16 @@ def speech_norm_notes(config: ProtocolConfig) -> list[str]:
     return ["speech-norm clip: models normalising waveforms read each clip's whole-waveform mean and variance "
             "(as the released TIMAR and DualTalk evaluations do); this reads future audio, so the run is not "
             "strictly causal"]
+
+
+def perturbation_notes(config: ProtocolConfig) -> list[str]:
+    """The note a perturbed run carries: what the model received and how its perturbations were seeded."""
+    if not config.perturbations:
+        return []
+    scale = f"; motion noise scale sigma = {config.noise_scale:g}" if config.noise_scale is not None else ""
+    return [f"perturbed inputs {describe(config.perturbations)} (dyadbench.protocol.perturbations; scored "
+            f"against the unperturbed ground truth): each clip and participant seeded with "
+            f"derive_seed({config.seed}, 'perturbation', clip, participant, signal, kind){scale}"]
 
 
 _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()
