@@ -17,6 +17,10 @@ Facts kept from TIMAR's released perturbation script (``shared/specs/robustness.
 - speech noise: ``noise_std = sqrt(mean(x^2) / 10^(snr/10))`` over the whole signal x, added on masked samples;
 - perturbations of one stream compose: noise first, then drop / silence.
 
+The corruption is causal except for two recorded facts of the release: the speech-noise level is set by the
+whole clip's power, and under ``speech_norm = clip`` the waveform statistics are those of the corrupted clip
+(the release normalises the corrupted files it wrote).
+
 Where dyadbench departs from the script:
 
 - **Occupancy is exact.** The script starts a burst at each free position with probability
