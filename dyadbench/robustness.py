@@ -41,7 +41,7 @@ COMPONENTS = ("exp", "jaw", "pose")
 #: Configuration keys a perturbed run may differ in from its clean run.
 PERTURBATION_KEYS = ("perturbations", "noise_scale", "train")
 CSV_COLUMNS = ["model", "dataset", "split", "context", "clips", "perturbation", "occupancy", "burst_s", "metric",
-               "clean", "perturbed", "increase", "increase_pct", "file"]
+               "clean", "perturbed", "increase", "increase_pct", "noise_scale", "file"]
 TABLE_STEM = "robustness"
 
 
@@ -96,15 +96,17 @@ def _rows(p: Perturbation, result, reference, file: str) -> list[dict]:
                          "context": result.protocol.context, "clips": result.data.clips, "perturbation": p.family,
                          "occupancy": p.occupancy, "burst_s": p.burst_s, "metric": metric, "clean": base,
                          "perturbed": value, "increase": value - base,
-                         "increase_pct": 100 * (value - base) / base if base else math.nan, "file": file})
+                         "increase_pct": 100 * (value - base) / base if base else math.nan,
+                         "noise_scale": result.protocol.noise_scale, "file": file})
     return rows
 
 
 def caption(frame: pd.DataFrame) -> str:
-    """What the table covers, e.g. ``synthetic/test, n = 7, first 40 clips of the split``."""
+    """What the table covers, e.g. ``synthetic/test, n = 7, 40 clips (...); motion noise sigma = 0.26``."""
     parts = sorted({f"{d}/{s}, n = {n}, {c} clips (the first of the split, sorted ids)"
                     for d, s, n, c in frame[["dataset", "split", "context", "clips"]].itertuples(index=False)})
-    return "; ".join(parts)
+    scales = sorted({f"{v:g}" for v in frame["noise_scale"].dropna()})
+    return "; ".join(parts) + (f"; motion noise sigma = {', '.join(scales)}" if scales else "")
 
 
 def _cells(part: pd.DataFrame, prefix: str) -> str:
