@@ -87,7 +87,8 @@ def recorded_run(result: EvalResult) -> RecordedRun:
     p, recorded = result.protocol, result.configuration
     config = ProtocolConfig(turn_seconds=p.turn_seconds, context=p.context, tail=p.tail,
                             history_agent=p.history_agent, seed=p.seed,
-                            perturbations=parse_all(p.perturbations), noise_scale=p.noise_scale)
+                            perturbations=parse_all(p.perturbations), noise_scale=p.noise_scale,
+                            speech_norm=p.speech_norm)
     if recorded is not None:
         dataset, root, clips = recorded["dataset"], recorded["root"], recorded["clips"]
         train = recorded["train"] or {"dataset": dataset, "root": root}

@@ -152,3 +152,18 @@ def test_sweep_stale_refuses_run_options(swept, capsys):
     code, out, err = run_cli(capsys, "sweep", "--stale", "--models", "zero", "--contexts", "1", "--out", swept)
     assert code == 2
     assert "--models, --contexts cannot be given with it" in err
+
+
+def test_a_whole_clip_speech_normalisation_run_is_rechecked_with_that_setting(swept, tmp_path):
+    """A result recorded with --speech-norm clip is re-run and compared under clip, never under the
+    causal default (its configuration records the setting; the rebuilt protocol carries it)."""
+    from dyadbench.results import load_result
+    from dyadbench.staleness import recorded_run
+
+    def clip(d: dict) -> None:
+        d["protocol"]["speech_norm"] = d["configuration"]["speech_norm"] = "clip"
+
+    source = next(swept.glob("n0/zero.json"))
+    run = recorded_run(load_result(edited(source, tmp_path / "n0" / "zero@speech-clip.json", clip)))
+    assert run.config.speech_norm == "clip"
+    assert recorded_run(load_result(source)).config.speech_norm == "window"
