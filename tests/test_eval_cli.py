@@ -251,3 +251,17 @@ def test_single_participant_gaze_sessions_are_scored_with_the_gaze_suite():
     assert {r.suite for r in scores.values()} == {"gaze"}
     assert scores["oracle"].model.oracle and scores["oracle"].data.items == 2
     assert scores["oracle"].metrics["mae_all"] == 0.0 < scores["mean-frame"].metrics["mae_all"]
+
+
+def test_device_reaches_the_model_and_the_result_and_a_missing_device_is_refused(dualtalk_dir, tmp_path):
+    """--device is handed to the model (ModelOptions.device) and recorded; a device this machine lacks, or a
+    name torch does not know, is a usage error (exit 2) that names the value, never a traceback."""
+    out = tmp_path / "run"
+    _run(["eval", "--model", "dualtalk", "--data", str(dualtalk_dir), "--split", "test", "--context", "1",
+          "--clips", "1", "--device", "cpu", "--out", str(out)])
+    assert load_result(out / "result.json").environment["device"] == "cpu"
+    for bad in ("gpu0", "cuda:99" if __import__("torch").cuda.is_available() else "cuda"):
+        result = CliRunner().invoke(cli, ["eval", "--model", "zero", "--data", str(dualtalk_dir), "--split",
+                                          "test", "--device", bad, "--out", str(tmp_path / "x")])
+        assert result.exit_code == 2 and bad in result.output and "Traceback" not in result.output
+        assert not (tmp_path / "x").exists()

@@ -12,7 +12,7 @@ from typing import Callable
 import click
 
 from dyadbench import atomic
-from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec
+from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec, torch_device
 from dyadbench.cli.splits import ON_DISK, open_splits
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
@@ -58,7 +58,8 @@ def data_options(f: Callable) -> Callable:
 
 
 def protocol_options(f: Callable) -> Callable:
-    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights / --wav2vec / --speech-norm /
+    """--turn-seconds / --tail / --history-agent / --seed / --cfg-scale / --weights / --wav2vec / --device /
+    --speech-norm /
     --perturb / --noise-scale."""
     options = [
         click.option("--turn-seconds", default=1.0, show_default=True, type=POSITIVE,
@@ -82,6 +83,9 @@ def protocol_options(f: Callable) -> Callable:
                      type=click.Path(exists=True, file_okay=False, path_type=Path),
                      help="Local wav2vec 2.0 model folder for models with wav2vec speech features (the "
                           "released TIMAR: facebook/wav2vec2-large-960h-lv60-self). Never downloaded."),
+        click.option("--device", default="cpu", show_default=True, callback=torch_device,
+                     help="Where models with weights run: cpu, cuda or cuda:N (the released TIMAR and DualTalk "
+                          "sizes want a GPU). Recorded in the result's environment."),
         click.option("--speech-norm", default="window", show_default=True, type=click.Choice(SPEECH_NORMS),
                      help="Waveform normalisation of wav2vec front ends: window (causal: the audio of the "
                           "turns handed over) or clip (the whole clip's mean and variance, as the released "
@@ -116,12 +120,12 @@ def resolve_dataset(data: Path | None, dataset: str | None) -> str:
 def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
             cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
             predictions_dir: Path | None, extra: dict | None = None, threads: int | None = None,
-            check_configuration: Callable[[dict], None] | None = None) -> EvalResult:
+            check_configuration: Callable[[dict], None] | None = None, device: str = "cpu") -> EvalResult:
     """:func:`dyadbench.protocol.runner.evaluate` with the command line's options."""
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
     options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
-                           extra=dict(extra or {}))
+                           device=device, extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
                     predictions_dir=predictions_dir, threads=threads, check_configuration=check_configuration)
 
@@ -215,7 +219,7 @@ def is_predictions_folder(folder: Path) -> bool:
               help="Replace --out even when it holds files that are not a previous eval output.")
 def eval_command(model: str, split: str | None, context: int, turn_seconds: float, tail: str,
                  history_agent: str, seed: int, cfg_scale: float, weights: Path | None, wav2vec: Path | None,
-                 speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
+                 device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
                  dataset: str | None, train: Path | None,
                  allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
                  style_from: str | None, out: Path | None, force: bool) -> None:
@@ -242,7 +246,8 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
         if style_from is not None:
             extra["style_from"] = style_reference(source, style_from)
         result = run_one(model, source, train_split, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
-                         jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads)
+                         jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads,
+                         device=device)
         result = predictions_at(result, out / "predictions")
         save_result(result, staging / "result.json", out / "result.json")
         write_per_clip(result, staging / "per_clip.csv")

@@ -82,3 +82,22 @@ class PerturbationSpec(click.ParamType):
             return parse(value)
         except ConfigError as exc:
             self.fail(str(exc), param, ctx)
+
+
+def torch_device(ctx: click.Context | None, param: click.Parameter | None, value: str) -> str:
+    """Click callback for ``--device``: a device torch knows and this machine has (cpu, cuda, cuda:N)."""
+    import torch  # noqa: PLC0415  (only when the option is parsed)
+
+    try:
+        device = torch.device(value)
+    except (RuntimeError, ValueError):
+        raise click.BadParameter(f"{value!r} is not a torch device (cpu, cuda, cuda:N)") from None
+    if device.type == "cuda":
+        if not torch.cuda.is_available():
+            raise click.BadParameter(f"{value!r}: CUDA is not available here (torch {torch.__version__}); "
+                                     "use --device cpu")
+        if device.index is not None and device.index >= torch.cuda.device_count():
+            raise click.BadParameter(f"{value!r}: this machine has {torch.cuda.device_count()} CUDA device(s)")
+    elif device.type != "cpu":
+        raise click.BadParameter(f"{value!r}: models run on cpu or cuda")
+    return value

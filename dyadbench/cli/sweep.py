@@ -42,7 +42,7 @@ from dyadbench.staleness import STALE, Checker, RecordedRun, open_split, recorde
 
 #: Options describing which runs to make; ``--stale`` takes them from each result file and refuses them.
 RUN_OPTIONS = ("models", "splits", "context_list", "turn_seconds", "tail", "history_agent", "seed", "cfg_scale",
-               "weights", "wav2vec", "speech_norm", "perturb", "noise_scale", "data", "dataset", "train",
+               "weights", "wav2vec", "device", "speech_norm", "perturb", "noise_scale", "data", "dataset", "train",
                "allow_train_overlap", "clips", "keep_predictions", "per_clip", "force")
 
 
@@ -164,7 +164,7 @@ def _csv(value: str, what: str) -> list[str]:
 @click.pass_context
 def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
           tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None,
-          wav2vec: Path | None, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
+          wav2vec: Path | None, device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
           threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
           stale: bool) -> None:
@@ -212,7 +212,7 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                          if keep_predictions else None)
                 run_to_file(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                             clips=clips, jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
-                            per_clip=per_clip, preds=preds)
+                            per_clip=per_clip, preds=preds, device=device)
 
 
 def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
@@ -226,7 +226,7 @@ def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
 
 def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConfig, *, cfg_scale: float,
                 weights: Path | None, clips: int | None, jobs: int, threads: int | None, extra: dict, force: bool,
-                per_clip: bool, preds: Path | None = None) -> EvalResult | None:
+                per_clip: bool, preds: Path | None = None, device: str = "cpu") -> EvalResult | None:
     """One sweep run written to ``path``; skipped (None returned) when ``path`` holds a result of the same
     configuration and not ``force``; ``preds``: where to keep the predictions (None: not kept)."""
     check = reuse_check(path) if path.exists() and not force else None
@@ -234,7 +234,7 @@ def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConf
         with kept_predictions(preds, force) as staging:
             result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                              clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
-                             extra=extra, check_configuration=check)
+                             extra=extra, check_configuration=check, device=device)
     except Unchanged:
         click.echo(f"skip {path} (same configuration; --force re-runs)")
         return None

@@ -214,7 +214,7 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         predictions=None if temporary else str(pred_dir),
         timing=TimingRecord(wall_s=time.perf_counter() - started, model_s=model_s, turns=len(latencies),
                             mean_turn_latency_s=model_s / max(len(latencies), 1), threads=threads),
-        environment=environment(), created_utc=utc_now(), configuration=requested,
+        environment={**environment(), "device": options.device}, created_utc=utc_now(), configuration=requested,
         uncertainty=dict(report.uncertainty), uncertainty_method=dict(report.uncertainty_method))
 
 
