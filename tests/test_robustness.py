@@ -71,3 +71,11 @@ def test_bad_perturbation_is_a_usage_error(root, capsys):
     code, output = dyadbench(capsys, "eval", "--model", "zero", "--data", root / "test", "--perturb",
                              "partner-motion:gaussian:0.3", "--out", root.parent / "never")
     assert code == 2 and "--noise-scale" in error_line(output)
+
+
+def test_committed_table_and_plot_regenerate_from_the_committed_results(tmp_path, capsys, monkeypatch):
+    repo = Path(__file__).resolve().parents[1]
+    monkeypatch.chdir(repo)  # the table records the result files' paths as given
+    _ok(capsys, "robustness", "--table-only", "--results", "results/robustness", "--out", tmp_path)
+    for name in TABLES:
+        assert (tmp_path / name).read_bytes() == (repo / "leaderboards" / name).read_bytes(), name
