@@ -130,7 +130,7 @@ def markdown(frame: pd.DataFrame) -> str:
              f"{caption(frame)}. Each cell: relative increase (perturbed - clean) / clean in % of exp / jaw / "
              "pose, per burst occupancy (bursts of 1 s; occupancy 1: the agent's speech silenced throughout, "
              "4-s bursts). Regenerate: "
-             "`dyadbench robustness --table-only --results results/robustness --out leaderboards/`.",
+             "`dyadbench robustness --table-only --results results-robustness --out leaderboards/`.",
              ""]
     for title, prefix in METRICS:
         header, body = _grid(frame, prefix)
@@ -142,7 +142,7 @@ def markdown(frame: pd.DataFrame) -> str:
 
 def latex(frame: pd.DataFrame) -> str:
     lines = [f"% Robustness: relative increase over the clean run (%), exp / jaw / pose; {caption(frame)}",
-             "% Regenerate: dyadbench robustness --table-only --results results/robustness --out leaderboards/"]
+             "% Regenerate: dyadbench robustness --table-only --results results-robustness --out leaderboards/"]
     for title, prefix in METRICS:
         header, body = _grid(frame, prefix)
         lines += [rf"% {title}", r"\begin{tabular}{ll" + "r" * (len(header) - 2) + "}", r"\toprule",

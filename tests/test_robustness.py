@@ -76,6 +76,6 @@ def test_bad_perturbation_is_a_usage_error(root, capsys):
 def test_committed_table_and_plot_regenerate_from_the_committed_results(tmp_path, capsys, monkeypatch):
     repo = Path(__file__).resolve().parents[1]
     monkeypatch.chdir(repo)  # the table records the result files' paths as given
-    _ok(capsys, "robustness", "--table-only", "--results", "results/robustness", "--out", tmp_path)
+    _ok(capsys, "robustness", "--table-only", "--results", "results-robustness", "--out", tmp_path)
     for name in TABLES:
         assert (tmp_path / name).read_bytes() == (repo / "leaderboards" / name).read_bytes(), name

@@ -55,7 +55,7 @@ def write_report(results: Path, out: Path) -> list[Path]:
               help="Local wav2vec 2.0 folder for models with wav2vec speech features.")
 @data_options
 @click.option("--results", "results", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("results/robustness"), show_default=True,
+              default=Path("results-robustness"), show_default=True,
               help="Result folder: RESULTS/<dataset>/<split>/n<context>/<model>[@<perturbation>].json.")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=Path("leaderboards"),
               show_default=True, help="Folder of robustness.csv/.md/.tex and robustness.png.")
@@ -76,7 +76,7 @@ def robustness(models: str | None, split: str, context: int, levels: str, burst_
       dyadbench robustness --models zero,mean-frame,random,mime,nn-retrieval,timar,dualtalk-offline,timar-stream \\
           --clips 40 --no-per-clip --jobs 1 --threads 1
     and they regenerate byte for byte from the result files with:
-      dyadbench robustness --table-only --results results/robustness --out leaderboards/
+      dyadbench robustness --table-only --results results-robustness --out leaderboards/
     """
     check_folder(out, f"--out {out}")
     if not table_only:
