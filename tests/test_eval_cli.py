@@ -265,3 +265,14 @@ def test_device_reaches_the_model_and_the_result_and_a_missing_device_is_refused
                                           "test", "--device", bad, "--out", str(tmp_path / "x")])
         assert result.exit_code == 2 and bad in result.output and "Traceback" not in result.output
         assert not (tmp_path / "x").exists()
+
+
+def test_eval_without_out_keeps_a_variant_beside_the_plain_run(dualtalk_dir, tmp_path, monkeypatch):
+    """The default output folder names the run's variant, so a perturbed (or guided) run never replaces the
+    clean run's folder."""
+    monkeypatch.chdir(tmp_path)
+    base = ["eval", "--model", "zero", "--data", str(dualtalk_dir), "--split", "test", "--context", "1"]
+    _run(base)
+    _run(base + ["--perturb", "partner-motion:drop:0.3"])
+    assert sorted(p.name for p in (tmp_path / "runs").iterdir()) == [
+        "zero_dualtalk_test_n1", "zero_dualtalk_test_n1@partner-motion-drop0.3"]

@@ -17,8 +17,9 @@ from dyadbench.cli.splits import ON_DISK, open_splits
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
-from dyadbench.protocol.config import HISTORY_AGENT, SPEECH_NORMS, TAILS, ProtocolConfig
+from dyadbench.protocol.config import HISTORY_AGENT, SPEECH_NORMS, TAILS, ProtocolConfig, variant_label
 from dyadbench.protocol.interface import ModelOptions
+from dyadbench.protocol.perturbations import variant_part
 from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import policy
@@ -108,6 +109,15 @@ def protocol_options(f: Callable) -> Callable:
 def wav2vec_extra(wav2vec: Path | None) -> dict:
     """The model option naming the local wav2vec 2.0 folder (none without --wav2vec)."""
     return {} if wav2vec is None else {"wav2vec_weights": str(wav2vec)}
+
+
+def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
+    """The result-file variant of a run: :func:`~dyadbench.protocol.config.variant_label` of its settings,
+    then its input perturbations (:func:`dyadbench.protocol.perturbations.variant_part`)."""
+    parts = [variant_label(turn_seconds=config.turn_seconds, tail=config.tail, history_agent=config.history_agent,
+                           cfg_scale=cfg_scale, seed=config.seed, speech_norm=config.speech_norm),
+             variant_part(config.perturbations, config.noise_scale)]
+    return "+".join(p for p in parts if p)
 
 
 def resolve_dataset(data: Path | None, dataset: str | None) -> str:
@@ -212,7 +222,7 @@ def is_predictions_folder(folder: Path) -> bool:
                    "the evaluated split, or a gaze-layout <session>.npz; its style conditions every window.")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
               help="Output folder: predictions/<clip>_speakerK.npy, result.json, per_clip.csv "
-                   "[default: runs/<model>_<dataset>_<split>_n<context>]. Written aside and swapped in when "
+                   "[default: runs/<model>_<dataset>_<split>_n<context>[@<variant>]]. Written aside and swapped in when "
                    "complete: it then holds this run's files only, and an interrupted run leaves the "
                    "previous output untouched.")
 @click.option("--force", is_flag=True,
@@ -240,7 +250,8 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
     check_cache()
     given = None if out is None else eval_output(out, force).check()  # before reading or digesting any data
     source, train_split = open_splits(data, name, split, train=train, allow_overlap=allow_train_overlap)
-    out = out or Path("runs") / f"{model}_{name}_{source.split}_n{context}"
+    variant = run_variant(config, cfg_scale)
+    out = out or Path("runs") / (f"{model}_{name}_{source.split}_n{context}" + (f"@{variant}" if variant else ""))
     with (given or eval_output(out, force)).writing() as staging:
         extra = wav2vec_extra(wav2vec)
         if style_from is not None:

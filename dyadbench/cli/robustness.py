@@ -10,7 +10,8 @@ from dyadbench import atomic
 from dyadbench.cli.eval import data_options, resolve_dataset, wav2vec_extra
 from dyadbench.cli.options import POSITIVE, SEED
 from dyadbench.cli.splits import open_splits
-from dyadbench.cli.sweep import _csv, result_path, run_to_file, run_variant
+from dyadbench.cli.eval import run_variant
+from dyadbench.cli.sweep import _csv, result_path, run_to_file
 from dyadbench.errors import InputError
 from dyadbench.outputs import check_cache, check_folder
 from dyadbench.protocol.config import ProtocolConfig

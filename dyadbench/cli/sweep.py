@@ -28,13 +28,12 @@ import click
 from click.core import ParameterSource
 
 from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
-                                resolve_dataset, run_one, save_result, summary, wav2vec_extra)
+                                resolve_dataset, run_one, run_variant, save_result, summary, wav2vec_extra)
 from dyadbench.cli.options import IntList
 from dyadbench.cli.splits import sweep_splits
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import check_cache, check_folder, owned_folder
-from dyadbench.protocol.config import ProtocolConfig, variant_label
-from dyadbench.protocol.perturbations import variant_part
+from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.run_configuration import differences
 from dyadbench.registry import MODELS
 from dyadbench.results import EvalResult, load_result, result_files
@@ -213,15 +212,6 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                 run_to_file(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                             clips=clips, jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
                             per_clip=per_clip, preds=preds, device=device)
-
-
-def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
-    """The result-file variant of a run: :func:`~dyadbench.protocol.config.variant_label` of its settings,
-    then its input perturbations (:func:`dyadbench.protocol.perturbations.variant_part`)."""
-    parts = [variant_label(turn_seconds=config.turn_seconds, tail=config.tail, history_agent=config.history_agent,
-                           cfg_scale=cfg_scale, seed=config.seed, speech_norm=config.speech_norm),
-             variant_part(config.perturbations, config.noise_scale)]
-    return "+".join(p for p in parts if p)
 
 
 def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConfig, *, cfg_scale: float,
