@@ -111,3 +111,23 @@ def test_cli_help_lists_every_option():
     assert result.exit_code == 0
     for option in ("--config", "--data", "--epochs", "--resume", "--export", "--out", "--seed", "--clips"):
         assert option in result.output
+
+
+@pytest.mark.parametrize("args, expected", [([], ("synthetic", None)),
+                                            (["--dataset", "synthetic-v2"], ("synthetic-v2", None))])
+def test_train_reads_the_train_split_of_the_named_embedded_corpus(tmp_path, monkeypatch, args, expected):
+    """`dyadbench train timar --dataset synthetic-v2` trains on corpus v2's train split; without --dataset the
+    embedded default. (The split opener is replaced so no corpus is generated; it stops the command.)"""
+    import dyadbench.protocol.runner as runner
+    from dyadbench.cli import main
+
+    opened = []
+
+    def fake_open(name, root, split):
+        opened.append((name, root, split))
+        raise InputError(name, "stop here")
+
+    monkeypatch.setattr(runner, "open_dataset_split", fake_open)
+    with pytest.raises(SystemExit) as exc:
+        main(["train", "timar", *args, "--out", str(tmp_path / "run")])
+    assert exc.value.code == 2 and opened == [(*expected, "train")]

@@ -120,6 +120,21 @@ def run_variant(config: ProtocolConfig, cfg_scale: float) -> str:
     return "+".join(p for p in parts if p)
 
 
+#: ``--dataset`` of the ``dyadbench train`` commands: whose train split they read (see :func:`open_train_split`).
+TRAIN_DATASET = click.option(
+    "--dataset", default=None, type=click.Choice(DATASETS.names()),
+    help=f"Dataset whose train split to read. Default: '{EMBEDDED}' (the embedded corpus, generated into the "
+         f"cache on first use) without --data, 'dualtalk' with --data. E.g. --dataset synthetic-v2.")
+
+
+def open_train_split(data: Path | None, dataset: str | None) -> ClipSource:
+    """The train split a ``dyadbench train`` command reads: ``--data``'s (its layout named by ``--dataset``,
+    default DualTalk) or, without ``--data``, the embedded corpus ``--dataset`` names (default ``EMBEDDED``)."""
+    from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
+
+    return open_dataset_split(resolve_dataset(data, dataset), data, "train")
+
+
 def resolve_dataset(data: Path | None, dataset: str | None) -> str:
     name = dataset or ("dualtalk" if data is not None else EMBEDDED)
     if data is None and name not in ON_DISK:

@@ -10,6 +10,7 @@ from typing import Callable
 
 import click
 
+from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
 from dyadbench.cli.options import COUNT, NON_NEGATIVE, POSITIVE, SEED
 from models.timar.config import MOTION_NORMS, PRESETS
 
@@ -24,6 +25,7 @@ OPTIONS = [
     click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
                  help="Dataset root holding train/ in the DualTalk layout. Default: the embedded synthetic "
                       "corpus (generated into the cache on first use)."),
+    TRAIN_DATASET,
     click.option("--clips", type=click.IntRange(min=1), default=None,
                  help="Train on the first N clips of the train split only (quick runs)."),
     click.option("--epochs", type=click.IntRange(min=1), default=1, show_default=True,
@@ -56,12 +58,12 @@ def _with_options(f: Callable) -> Callable:
     return functools.reduce(lambda g, opt: opt(g), reversed(OPTIONS), f)
 
 
-def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | None, clips: int | None,
-         epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float, stride_turns: int, seed: int,
-         out: Path | None, resume: Path | None, export: Path | None, device: str, wav2vec_weights: str | None) -> None:
+def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | None, dataset: str | None,
+         clips: int | None, epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float,
+         stride_turns: int, seed: int, out: Path | None, resume: Path | None, export: Path | None, device: str,
+         wav2vec_weights: str | None) -> None:
     from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
-    from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
 
@@ -71,7 +73,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
     if export is not None:
         check_file(export, f"--export {export}")
     cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
-    source = open_dataset_split("dualtalk" if data is not None else "synthetic", data, "train")
+    source = open_train_split(data, dataset)
     if clips is not None:
         source = InMemorySource([source.load(c) for c in source.clip_ids()[:clips]], dataset=source.dataset,
                                 split="train")
