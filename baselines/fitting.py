@@ -17,9 +17,10 @@ from tqdm import tqdm
 
 from dyadbench import atomic
 from dyadbench.datasets.base import ClipSource
-from dyadbench.errors import ConfigError, InputError
+from dyadbench.errors import InputError
 from dyadbench.paths import cache_dir
 from dyadbench.provenance import source_key
+from dyadbench.protocol.train_split import open_for
 
 MEDIAN_MAX_FRAMES = 200_000  # the median is taken over every k-th frame, k chosen to keep at most this many
 
@@ -27,12 +28,7 @@ MEDIAN_MAX_FRAMES = 200_000  # the median is taken over every k-th frame, k chos
 def open_train(train_split: Callable[[], ClipSource] | None, model: str) -> ClipSource:
     """The train split of a baseline's options, or a ConfigError (naming the baseline) saying it needs one
     or why it cannot have it (:class:`dyadbench.protocol.train_split.TrainSplit`)."""
-    if train_split is None:
-        raise ConfigError(f"{model} is fitted on a train split; pass ModelOptions(train_split=...)")
-    try:
-        source = train_split()
-    except ConfigError as exc:
-        raise ConfigError(f"{model}: {exc}") from None
+    source = open_for(train_split, model, missing="is fitted on a train split; pass ModelOptions(train_split=...)")
     if len(source) == 0:
         raise InputError(f"{source.dataset}/{source.split}", f"{model}: the train split has no clips")
     return source

@@ -18,11 +18,12 @@ import numpy as np
 
 from dyadbench import atomic
 from dyadbench.datasets.base import ClipSource
-from dyadbench.errors import ConfigError, InputError
+from dyadbench.errors import InputError
 from dyadbench.paths import cache_dir
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.perturbations import needs_noise_scale
 from dyadbench.provenance import source_key
+from dyadbench.protocol.train_split import open_for
 
 DECIMALS = 3  # the release rounds the scale to 3 decimals
 
@@ -57,11 +58,7 @@ def resolve_noise_scale(config: ProtocolConfig, train_split: Callable[[], ClipSo
     and none was given; a ConfigError saying to pass ``--noise-scale`` when there is no train split."""
     if config.noise_scale is not None or not needs_noise_scale(config.perturbations):
         return config
-    advice = "pass --noise-scale (the release: the mean per-dimension std of the training motion)"
-    if train_split is None:
-        raise ConfigError(f"motion noise takes its scale from the train split, and this run has none; {advice}")
-    try:
-        source = train_split()
-    except ConfigError as exc:
-        raise ConfigError(f"motion noise takes its scale from the train split: {exc}; {advice}") from None
+    source = open_for(train_split, "motion noise (scale from the train split)",
+                      missing="needs a train split, and this run has none",
+                      hint="pass --noise-scale (the release: the mean per-dimension std of the training motion)")
     return replace(config, noise_scale=train_noise_scale(source))

@@ -97,3 +97,16 @@ def overlap_notes(record: dict | None) -> list[str]:
     return [f"TRAIN OVERLAP: the train split {train} holds {record['overlap']} of the evaluated clips (e.g. "
             f"{', '.join(record['overlap_clips'])}); run with --allow-train-overlap: the scores are not "
             f"comparable with other runs and never ranked"]
+
+
+def open_for(opener: Callable[[], ClipSource] | None, user: str, *, missing: str, hint: str = "") -> ClipSource:
+    """The train split ``opener`` opens for ``user`` (a model or setting that needs it, named in messages): a
+    ConfigError ``"<user> <missing>"`` when the run has none, or naming ``user`` and why it cannot be opened;
+    ``hint`` (what to do instead) ends both messages."""
+    tail = f"; {hint}" if hint else ""
+    if opener is None:
+        raise ConfigError(f"{user} {missing}{tail}")
+    try:
+        return opener()
+    except ConfigError as exc:
+        raise ConfigError(f"{user}: {exc}{tail}") from None
