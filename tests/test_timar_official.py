@@ -113,6 +113,25 @@ def test_streamed_conditions_match_the_release_with_clip_speech_normalisation(mo
     assert stream.info.config["format"] == "official" and stream.info.config["clamp_variance"] is False
 
 
+def test_window_speech_normalisation_gives_the_same_conditions_cached_or_re_encoded(monkeypatch, fixture_arrays):
+    """--speech-norm window normalises each turn's audio on its own, so the cached stream (each turn
+    featurised once) and the re-encoding stream (the whole window featurised every turn) condition the
+    diffusion head identically, also after the window slides (turn 8 on)."""
+    inputs, _ = fixture_arrays
+    monkeypatch.setitem(official.FACTORY_HEADS, "timar_tiny_b", HEADS)
+    conditions = {}
+    for cache in (True, False):
+        stream = build_timar(ModelOptions(weights=CHECKPOINT, extra={"wav2vec_weights": str(WAV2VEC),
+                                                                     "cache": cache}))
+        seen = conditions[cache] = []
+        sample = stream.model.sample_frames
+        monkeypatch.setattr(stream.model, "sample_frames",
+                            lambda z, *a, s=sample, k=seen, **kw: k.append(z) or s(z, *a, **kw))
+        stream_agent(stream, fixture_clip(inputs), "speaker2", ProtocolConfig(context=7))
+    cached, re_encoded = (torch.stack(conditions[c]).double().numpy() for c in (True, False))
+    assert cached.shape[0] == 11 and np.abs(cached - re_encoded).max() < 1e-5
+
+
 def test_the_model_key_instead_of_model_ema_fails_the_comparison(fixture_arrays):
     model = official.load_official(CHECKPOINT, heads=HEADS, weights="model")[0]
     assert max_conditioning_error(model, fixture_arrays) > 0.1

@@ -17,6 +17,7 @@ from tqdm import tqdm
 
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import InputError
+from dyadbench.features.wav2vec import waveform_stats
 from models.timar.config import MOTION_STD_FLOOR, TimarConfig
 from models.timar.frontends import SpeechFrontend
 
@@ -40,7 +41,7 @@ def clip_features(clip: DyadicClip, frontend: SpeechFrontend, cfg: TimarConfig) 
         audio = np.zeros(turns * cfg.samples_per_turn, np.float32)
         usable = min(len(p.audio), len(audio))
         audio[:usable] = p.audio[:usable]
-        out[p.name] = ParticipantFeatures(frontend.features(audio, turns),
+        out[p.name] = ParticipantFeatures(frontend.features(audio, turns, waveform_stats(p.audio)),
                                           np.asarray(p.motion[:frames], dtype=np.float32))
     return out
 

@@ -55,12 +55,12 @@ class LogMelFrontend(SpeechFrontend):
 
 
 class Wav2VecFrontend(SpeechFrontend):
-    """:func:`dyadbench.features.wav2vec.wav2vec_frames` on the audio passed in.
+    """:func:`dyadbench.features.wav2vec.wav2vec_frames` (1-s chunks, CNN features interpolated to 25 frames).
 
-    That function normalises the waveform before cutting 1-s chunks: with the whole clip's statistics
-    when ``stats`` are given (the release, and ``--speech-norm clip``), else with those of the audio
-    passed in (in training the whole clip, in streaming only the turns the model is handed, so the
-    streamed features stay causal).
+    The waveform is normalised before the chunks are cut: with ``stats`` = (mean, var) when given (the whole
+    clip's: the release, in training and under ``--speech-norm clip``), otherwise each turn with its own
+    statistics (``--speech-norm window``), so a turn's features depend only on that turn's audio: causal,
+    and the same whether a stream caches turns or re-encodes its window.
     """
 
     name = "wav2vec"
@@ -73,7 +73,12 @@ class Wav2VecFrontend(SpeechFrontend):
         self._model = wav2vec.load_wav2vec(weights or wav2vec.DEFAULT_MODEL)
         self.dim = int(self._model.config.hidden_size)
 
+    def chunk_features(self, chunk: np.ndarray) -> np.ndarray:
+        return self._wav2vec.wav2vec_frames(self._model, chunk, self.sample_rate, self.fps)
+
     def features(self, audio: np.ndarray, turns: int, stats: tuple[float, float] | None = None) -> np.ndarray:
+        if stats is None:
+            return super().features(audio, turns)
         audio = np.asarray(audio, dtype=np.float32)[:turns * self.samples_per_turn]
         return self._wav2vec.wav2vec_frames(self._model, audio, self.sample_rate, self.fps, stats=stats)
 
