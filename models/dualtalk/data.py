@@ -5,6 +5,13 @@ batch, a length L uniform in ``min_seconds..max_seconds`` whole seconds, and per
 (agent = either participant, user = the other) and a start frame uniform over the clip. Each window's
 waveforms are normalised over the window (as the causal streaming default does) before the log-mel input
 (:func:`models.dualtalk.speech.logmel_input`). Clips are held in memory (audio as float16).
+
+The shipped default of 1-8 s windows was kept after a comparison on the first 40 val dialogues (lr 5e-4,
+seed 0, about 17 min of one CPU thread each): FD exp at n = 0 / 7 / offline was 6.74 / 9.17 / 14.83 for
+1-8 s windows (16 per step, 2000 steps), 13.66 / 14.43 / 15.37 for 1-32 s (4 per step, 1000 steps) and
+15.92 / 16.05 / 16.62 for 1-62 s (2 per step, 500 steps; the longest train clip lasts 62 s and shorter
+clips are edge-padded). Longer windows gave flatter output (exp variance at n = 7: 0.052, 0.009, 0.001;
+ground truth 0.275) for the same training time.
 """
 
 from __future__ import annotations
