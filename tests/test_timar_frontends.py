@@ -41,6 +41,12 @@ def test_wav2vec_frontend_runs_the_shared_pipeline(tmp_path):
     transformers.Wav2Vec2Model(config).save_pretrained(tmp_path)
     audio = np.random.default_rng(1).normal(0, 0.1, 2 * 16_000 + 700).astype(np.float32)
     frontend = Wav2VecFrontend(preset("base"), weights=str(tmp_path))
-    feats = frontend.features(audio, 2)
+    model = load_wav2vec(tmp_path)
+    feats = frontend.features(audio, 2)  # --speech-norm window: each 1-s turn normalised on its own
     assert feats.shape == (50, 32) and frontend.dim == 32
-    np.testing.assert_allclose(feats, wav2vec_frames(load_wav2vec(tmp_path), audio[:32_000]), atol=1e-6)
+    per_turn = np.concatenate([wav2vec_frames(model, audio[i * 16_000:(i + 1) * 16_000]) for i in range(2)])
+    np.testing.assert_allclose(feats, per_turn, atol=1e-6)
+    clip = frontend.features(audio, 2, stats=(float(audio.mean()), float(audio.var())))  # the release's
+    np.testing.assert_allclose(clip, wav2vec_frames(model, audio[:32_000], stats=(audio.mean(), audio.var())),
+                               atol=1e-6)
+    assert np.abs(clip - feats).max() > 1e-3  # the two normalisations differ
