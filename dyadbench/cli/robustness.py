@@ -74,7 +74,8 @@ def robustness(models: str | None, split: str, context: int, levels: str, burst_
     agent speech silence and 60-dB noise, each at every --levels occupancy with --burst bursts, and the
     agent's speech silenced throughout; one result file each (a run with the same recorded configuration is
     skipped). The committed table and plot (first 40 test dialogues of the embedded corpus):
-      dyadbench robustness --models zero,mean-frame,random,mime,nn-retrieval,timar,dualtalk-offline,timar-stream \\
+      M=zero,mean-frame,median-frame,random,mime,lagged-mirror,nn-retrieval
+      dyadbench robustness --models $M,timar,timar-stream,sfms,dualtalk,dualtalk-offline \\
           --clips 40 --no-per-clip --jobs 1 --threads 1
     and they regenerate byte for byte from the result files with:
       dyadbench robustness --table-only --results results-robustness --out leaderboards/
