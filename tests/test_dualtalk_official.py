@@ -1,7 +1,7 @@
 """The released DualTalk checkpoint format against the public official-code fixtures (dualtalk_b).
 
 Reference values come from the released code (float64 run, and an unmodified float32 run for
-``*_f32run``); see ``shared/data/official-fixtures/dualtalk_b/README.md``.
+``*_f32run``); see ``tests/fixtures/official/dualtalk_b/README.md``.
 """
 
 from __future__ import annotations
@@ -20,14 +20,13 @@ from models.dualtalk.official import load_official
 from models.dualtalk.registry import build_dualtalk_offline, load_dualtalk
 from models.dualtalk.speech import frame_count
 
-FIXTURES = Path(__file__).resolve().parents[2] / "shared" / "data" / "official-fixtures"
+FIXTURES = Path(__file__).resolve().parent / "fixtures" / "official"
 DT = FIXTURES / "dualtalk_b"
 CHECKPOINT, WAV2VEC = DT / "checkpoint.pth", DT / "wav2vec-tiny"
 STAGES = ("audio_feat1", "audio_feat2", "blendshape_feat", "temporal_feat", "interaction_feat", "output")
 # float32 against the float64 release: wav2vec states (and their projections) 1e-4, the rest 1e-5 (README)
 F32_TOLERANCE = {"audio_feat1": 1e-4, "audio_feat2": 1e-4}
 
-pytestmark = pytest.mark.skipif(not DT.is_dir(), reason="official fixtures not present")
 
 
 @pytest.fixture(scope="module")

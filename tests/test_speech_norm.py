@@ -11,7 +11,7 @@ from dyadbench.protocol.causality import check_causal, perturb_after
 from dyadbench.protocol.config import ProtocolConfig, variant_label
 from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
 from dyadbench.protocol.streaming import stream_context
-from tests.timar_official_fixture import WAV2VEC, arrays, fixture_clip, needs_fixture, pcm_audio
+from tests.timar_official_fixture import WAV2VEC, arrays, fixture_clip, pcm_audio
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +26,6 @@ def test_the_setting_is_validated_and_named_in_variant_labels():
     assert variant_label(speech_norm="window", cfg_scale=1.5) == "cfg1.5"
 
 
-@needs_fixture
 def test_clip_hands_over_each_participants_whole_clip_statistics(fixture_arrays):
     inputs, _ = fixture_arrays
     clip = fixture_clip(inputs)
@@ -38,7 +37,6 @@ def test_clip_hands_over_each_participants_whole_clip_statistics(fixture_arrays)
         assert stats == pytest.approx((x.mean(), ((x - x.mean()) ** 2).mean()), rel=1e-5, abs=1e-9)
 
 
-@needs_fixture
 def test_clip_normalisation_gives_the_released_waveform_and_speech_features(fixture_arrays):
     inputs, outputs = fixture_arrays
     model = wav2vec.load_wav2vec(WAV2VEC)
@@ -66,7 +64,6 @@ class StatsReader(StreamingModel):
         return np.full((turn.frames_per_turn, 56), self.mean + turn.current_user_audio.mean(), np.float32)
 
 
-@needs_fixture
 def test_the_causality_check_holds_clip_statistics_fixed_and_still_sees_later_inputs(fixture_arrays):
     clip = fixture_clip(fixture_arrays[0])
     config = ProtocolConfig(context=2, speech_norm="clip")

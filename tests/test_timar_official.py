@@ -18,9 +18,8 @@ from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.streaming import stream_agent
 from models.timar import official
 from models.timar.registry import build_timar
-from tests.timar_official_fixture import CHECKPOINT, HEADS, WAV2VEC, arrays, fixture_clip, needs_fixture
+from tests.timar_official_fixture import CHECKPOINT, HEADS, WAV2VEC, arrays, fixture_clip
 
-pytestmark = needs_fixture
 F = 25
 
 

@@ -16,10 +16,9 @@ from dyadbench.torch_files import load_tensors_only
 from models.timar import official
 from models.timar.registry import SHIPPED, build_timar
 from tests.hostile_cli import run_cli
-from tests.timar_official_fixture import (CHECKPOINT, FIXTURE, HEADS, WAV2VEC, arrays, needs_fixture,
+from tests.timar_official_fixture import (CHECKPOINT, FIXTURE, HEADS, WAV2VEC, arrays,
                                           write_dualtalk_split)
 
-pytestmark = needs_fixture
 DUALTALK_CHECKPOINT = FIXTURE.parent / "dualtalk_b" / "checkpoint.pth"
 
 

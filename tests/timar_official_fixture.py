@@ -1,4 +1,4 @@
-"""The released-code TIMAR fixture (``shared/data/official-fixtures/timar_b``) as test helpers.
+"""The released-code TIMAR fixture (``tests/fixtures/official/timar_b``, a copy of the public fixture) as test helpers.
 
 The fixture's README states its arrays: ``inputs.npz`` (PCM16 speech of user = speaker1 and agent =
 speaker2, motion [exp | jaw | neck]) and ``outputs.npz`` (what the released code computes from them).
@@ -10,18 +10,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 from dyadbench.datasets.base import DyadicClip, Participant
 from dyadbench.datasets.wav import write_wav
 
-FIXTURE = Path(__file__).resolve().parents[2] / "shared" / "data" / "official-fixtures" / "timar_b"
+FIXTURE = Path(__file__).resolve().parent / "fixtures" / "official" / "timar_b"
 CHECKPOINT = FIXTURE / "checkpoint.pth"
 WAV2VEC = FIXTURE / "wav2vec-tiny"
 HEADS = 3  # timar_tiny_b (fixture README: "Number of attention heads ... 3 here")
 CLIP_ID = "fixture"
 
-needs_fixture = pytest.mark.skipif(not CHECKPOINT.is_file(), reason=f"official fixture not found at {FIXTURE}")
 
 
 def arrays() -> tuple[dict, dict]:
