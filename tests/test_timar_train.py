@@ -113,10 +113,11 @@ def test_cli_help_lists_every_option():
         assert option in result.output
 
 
+@pytest.mark.parametrize("trainer", ["timar", "timar-stream", "dualtalk"])
 @pytest.mark.parametrize("args, expected", [([], ("synthetic", None)),
                                             (["--dataset", "synthetic-v2"], ("synthetic-v2", None))])
-def test_train_reads_the_train_split_of_the_named_embedded_corpus(tmp_path, monkeypatch, args, expected):
-    """`dyadbench train timar --dataset synthetic-v2` trains on corpus v2's train split; without --dataset the
+def test_train_reads_the_train_split_of_the_named_embedded_corpus(tmp_path, monkeypatch, trainer, args, expected):
+    """`dyadbench train <model> --dataset synthetic-v2` trains on corpus v2's train split; without --dataset the
     embedded default. (The split opener is replaced so no corpus is generated; it stops the command.)"""
     import dyadbench.protocol.runner as runner
     from dyadbench.cli import main
@@ -129,5 +130,5 @@ def test_train_reads_the_train_split_of_the_named_embedded_corpus(tmp_path, monk
 
     monkeypatch.setattr(runner, "open_dataset_split", fake_open)
     with pytest.raises(SystemExit) as exc:
-        main(["train", "timar", *args, "--out", str(tmp_path / "run")])
+        main(["train", trainer, *args, "--out", str(tmp_path / "run")])
     assert exc.value.code == 2 and opened == [(*expected, "train")]

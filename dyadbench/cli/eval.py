@@ -14,7 +14,7 @@ import click
 from dyadbench import atomic
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec, torch_device
 from dyadbench.cli.splits import ON_DISK, open_splits
-from dyadbench.datasets.base import ClipSource
+from dyadbench.datasets.base import ClipSource, InMemorySource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
 from dyadbench.protocol.config import HISTORY_AGENT, SPEECH_NORMS, TAILS, ProtocolConfig, variant_label
@@ -127,12 +127,17 @@ TRAIN_DATASET = click.option(
          f"cache on first use) without --data, 'dualtalk' with --data. E.g. --dataset synthetic-v2.")
 
 
-def open_train_split(data: Path | None, dataset: str | None) -> ClipSource:
+def open_train_split(data: Path | None, dataset: str | None, clips: int | None = None) -> ClipSource:
     """The train split a ``dyadbench train`` command reads: ``--data``'s (its layout named by ``--dataset``,
-    default DualTalk) or, without ``--data``, the embedded corpus ``--dataset`` names (default ``EMBEDDED``)."""
+    default DualTalk) or, without ``--data``, the embedded corpus ``--dataset`` names (default ``EMBEDDED``);
+    with ``clips``, only its first ``clips`` clips (held in memory)."""
     from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
 
-    return open_dataset_split(resolve_dataset(data, dataset), data, "train")
+    source = open_dataset_split(resolve_dataset(data, dataset), data, "train")
+    if clips is None:
+        return source
+    return InMemorySource([source.load(c) for c in source.clip_ids()[:clips]], dataset=source.dataset,
+                          split="train")
 
 
 def resolve_dataset(data: Path | None, dataset: str | None) -> str:

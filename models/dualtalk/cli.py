@@ -8,12 +8,14 @@ from pathlib import Path
 
 import click
 
+from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
 from dyadbench.cli.options import POSITIVE, SEED
 
 
 @click.command("dualtalk")
 @click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
               help="Dataset root holding train/ in the DualTalk layout. Default: the embedded synthetic corpus.")
+@TRAIN_DATASET
 @click.option("--clips", type=click.IntRange(min=1), default=None, help="Train on the first N train clips only.")
 @click.option("--steps", type=click.IntRange(min=1), default=1000, show_default=True, help="Optimiser steps.")
 @click.option("--batch-size", type=click.IntRange(min=1), default=16, show_default=True, help="Windows per step.")
@@ -31,7 +33,7 @@ from dyadbench.cli.options import POSITIVE, SEED
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None,
               help="Also write the final checkpoint to this file (e.g. to ship or pass to --weights).")
 @click.option("--device", default="cpu", show_default=True, help="cpu or cuda.")
-def train_dualtalk(data: Path | None, clips: int | None, steps: int, batch_size: int, lr: float, min_seconds: int,
+def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, steps: int, batch_size: int, lr: float, min_seconds: int,
                    max_seconds: int, feature_dim: int | None, seed: int, save_every: int, out: Path,
                    export: Path | None, device: str) -> None:
     """Train the log-mel DualTalk (tiny) on random 1-8 s windows; released loss, Adam.
@@ -41,9 +43,7 @@ def train_dualtalk(data: Path | None, clips: int | None, steps: int, batch_size:
       OMP_NUM_THREADS=1 dyadbench train dualtalk --steps 2000 --lr 5e-4 --seed 0 \\
           --export models/dualtalk/checkpoints/dualtalk-tiny.pt
     """
-    from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
-    from dyadbench.protocol.runner import open_dataset_split  # noqa: PLC0415
     from models.dualtalk.config import preset  # noqa: PLC0415
     from models.dualtalk.train import TrainSettings, train_dualtalk_model  # noqa: PLC0415
 
@@ -52,10 +52,7 @@ def train_dualtalk(data: Path | None, clips: int | None, steps: int, batch_size:
     if export is not None:
         check_file(export, f"--export {export}")
     cfg = preset("tiny", **({"feature_dim": feature_dim} if feature_dim else {}))
-    source = open_dataset_split("dualtalk" if data is not None else "synthetic", data, "train")
-    if clips is not None:
-        source = InMemorySource([source.load(c) for c in source.clip_ids()[:clips]], dataset=source.dataset,
-                                split="train")
+    source = open_train_split(data, dataset, clips)
     settings = TrainSettings(steps=steps, batch_size=batch_size, lr=lr, min_seconds=min_seconds,
                              max_seconds=max_seconds, seed=seed, save_every=save_every, device=device,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))

@@ -62,7 +62,6 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
          clips: int | None, epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float,
          stride_turns: int, seed: int, out: Path | None, resume: Path | None, export: Path | None, device: str,
          wav2vec_weights: str | None) -> None:
-    from dyadbench.datasets.base import InMemorySource  # noqa: PLC0415  (keeps --help fast)
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
@@ -73,10 +72,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
     if export is not None:
         check_file(export, f"--export {export}")
     cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
-    source = open_train_split(data, dataset)
-    if clips is not None:
-        source = InMemorySource([source.load(c) for c in source.clip_ids()[:clips]], dataset=source.dataset,
-                                split="train")
+    source = open_train_split(data, dataset, clips)
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, lr=lr, warmup_epochs=warmup_epochs, seed=seed,
                              stride_turns=stride_turns, device=device, wav2vec_weights=wav2vec_weights,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))
