@@ -241,7 +241,7 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "
     if part.empty:
         return pd.DataFrame(columns=head + columns)
     part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
-                       model=_variant_models(part), flags=part["flags"].fillna(""),
+                       model=variant_models(part), flags=part["flags"].fillna(""),
                        rank_group=prediction_sets(part))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
     for f in spread.MODES[uncertainty]:  # <col>_se or <col>_ci_low/_ci_high (dyadbench.leaderboard_uncertainty)
@@ -273,7 +273,7 @@ def unranked(rows: pd.DataFrame) -> pd.Series:
     return rows["oracle"].astype(bool) | (rows["flags"].fillna("") != "")
 
 
-def _variant_models(part: pd.DataFrame) -> pd.Series:
+def variant_models(part: pd.DataFrame) -> pd.Series:
     """Model labels with the run's non-default protocol settings, e.g. ``timar (cfg2)``.
 
     Runs of one model that differ only in guidance scale, seed, tail, history policy or turn length

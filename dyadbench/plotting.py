@@ -1,10 +1,17 @@
-"""PNG figures: per-clip trajectories and metric-vs-context curves (matplotlib, Agg backend).
+"""Figures from result files and predictions: context curves, per-model bars, trajectories.
 
+- :func:`plot_context_curves`: metrics (publication-scaled, :mod:`dyadbench.metrics.columns`) against the
+  context length n of one dataset; one panel per metric (rows) and split (columns), one series per model
+  *and* protocol variant (``timar`` and ``timar (cfg1.5)`` are two series); the x ticks are the contexts the
+  results hold. Splits with results at fewer than two contexts are left out (no one-point axes).
+- :func:`plot_bars`: one metric per panel row and split per column at one context, one horizontal bar per
+  model and variant, best first by the metric's direction, with the 95 % bootstrap CI the result files
+  record (:mod:`dyadbench.uncertainty`) as error bars where they record one.
 - :func:`plot_trajectories`: prediction vs the agent's ground truth vs the partner's motion over time,
   one panel per selected dimension, grouped by motion component (exp / jaw / pose, or head / gaze).
-- :func:`plot_context_curves`: a metric (publication-scaled) against the context length n, one line per
-  model, one panel per dataset/split; oracle rows dashed and labelled as such.
 
+Every figure uses :mod:`dyadbench.figure_style` (format by extension, paper sizes, one colour and marker per
+model in every figure, legend outside the panels). Rows of different datasets never share a figure.
 matplotlib is imported only inside these functions, and files are written atomically.
 """
 
@@ -15,8 +22,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from dyadbench import atomic
+from dyadbench import figure_style as style
 from dyadbench.errors import ConfigError
+from dyadbench.leaderboard import variant_models
+from dyadbench.metrics.columns import declared
 from dyadbench.motion import LAYOUTS, MotionLayout
 
 #: Default panels per layout: (component, index within the component).
@@ -48,71 +57,162 @@ def parse_dims(text: str, layout: MotionLayout) -> tuple[tuple[str, int], ...]:
     return tuple(dims)
 
 
-def _save(fig, out: str | Path) -> Path:
-    import matplotlib.pyplot as plt
-
-    try:
-        return atomic.write_with(out, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
-    finally:
-        plt.close(fig)
+def axis_label(suite: str, metric: str) -> str:
+    """A metric's printed header with its direction and scale, e.g. ``FD exp ↓ (x10)``; the key when
+    its suite does not declare it."""
+    columns = declared(suite)
+    spec = None if columns is None else columns.spec(metric)
+    if spec is None:
+        return metric
+    arrow = {True: " ↑", False: " ↓", None: ""}[spec.higher_is_better]
+    scale = spec.scale_label()
+    return f"{spec.header}{arrow}" + (f" ({scale})" if scale else "")
 
 
 def plot_trajectories(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray | None, layout: str, out: str | Path,
                       *, fps: float = 25.0, dims: tuple[tuple[str, int], ...] | None = None,
                       title: str = "") -> Path:
-    """Plot prediction, ground truth and partner (if any) for each selected dimension; write a PNG."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    """Plot prediction, ground truth and partner (if any) for each selected dimension; write ``out``
+    (PDF, SVG or PNG by extension)."""
+    style.figure_format(out)
     spec = LAYOUTS[layout]
     dims = dims or DEFAULT_DIMS[layout]
     for name, arr in (("prediction", pred), ("ground truth", gt), ("partner", partner)):
         if arr is not None and (arr.ndim != 2 or arr.shape[1] != spec.dim):
             raise ConfigError(f"{name} must be (T, {spec.dim}) for layout {layout}, got {arr.shape}")
-    fig, axes = plt.subplots(len(dims), 1, figsize=(10, 1.6 * len(dims) + 0.6), sharex=True, squeeze=False)
-    for ax, (name, i) in zip(axes[:, 0], dims):
-        column = spec.components[name].start + i
-        for arr, label, style in ((gt, "ground truth", dict(color="black", lw=1.2)),
-                                  (pred, "prediction", dict(color="tab:blue", lw=1.0)),
-                                  (partner, "partner", dict(color="tab:orange", lw=0.8, ls="--", alpha=0.8))):
-            if arr is not None:
-                ax.plot(np.arange(arr.shape[0]) / fps, arr[:, column], label=label, **style)
-        ax.set_ylabel(f"{name}[{i}]")
-    axes[0, 0].legend(loc="upper right", fontsize=8, ncol=3)
-    axes[-1, 0].set_xlabel("time (s)")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return _save(fig, out)
+    with style.paper_style() as plt:
+        fig, axes = plt.subplots(len(dims), 1, figsize=(style.PAGE_WIDTH, 0.9 * len(dims) + 0.5), sharex=True,
+                                 squeeze=False, layout="constrained")
+        for ax, (name, i) in zip(axes[:, 0], dims):
+            column = spec.components[name].start + i
+            for arr, label, kwargs in ((gt, "ground truth", dict(color="black", lw=1.1)),
+                                       (pred, "prediction", dict(color=style.PALETTE[0], lw=0.9)),
+                                       (partner, "partner", dict(color=style.PALETTE[6], lw=0.8, ls="--"))):
+                if arr is not None:
+                    ax.plot(np.arange(arr.shape[0]) / fps, arr[:, column], label=label, **kwargs)
+            ax.set_ylabel(f"{name}[{i}]")
+        axes[-1, 0].set_xlabel("time (s)")
+        if title:
+            fig.suptitle(title)
+        style.legend_outside(fig, axes[:, 0])
+        return style.save(fig, out)
 
 
-def plot_context_curves(long: pd.DataFrame, metrics: list[str], out: str | Path) -> Path:
-    """Plot each metric (scaled) against context n from a long results table; write a PNG."""
-    import matplotlib
+def labelled(long: pd.DataFrame, dataset: str | None, metrics: list[str]) -> pd.DataFrame:
+    """The dyadbench rows of one dataset and of ``metrics`` from a leaderboard long table
+    (:func:`dyadbench.leaderboard.long_table`), with ``label`` = model and protocol variant.
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    data = long[long["metric"].isin(metrics) & long["context"].notna()]
-    missing = [m for m in metrics if m not in set(data["metric"])]
+    ``dataset`` may be None when the rows hold a single dataset; ConfigError when they hold several (rows
+    of different datasets never share a figure) or when a metric has no row."""
+    rows = long[long["source"] == "dyadbench"]
+    datasets = sorted(set(rows["dataset"]))
+    if dataset is None and len(datasets) > 1:
+        raise ConfigError(f"the results hold several datasets ({', '.join(datasets)}); choose one with --dataset")
+    if dataset is not None and dataset not in datasets:
+        raise ConfigError(f"no results of dataset {dataset!r} (they hold {', '.join(datasets) or 'none'})")
+    rows = rows[rows["dataset"] == (dataset or datasets[0])] if datasets else rows
+    rows = rows[rows["metric"].isin(metrics)]
+    missing = [m for m in metrics if m not in set(rows["metric"])]
     if missing:
-        raise ConfigError(f"no results with context for metric(s) {', '.join(missing)}")
-    groups = list(data.groupby(["dataset", "split"]))
-    fig, axes = plt.subplots(len(metrics), len(groups), figsize=(4.5 * len(groups), 3.2 * len(metrics)),
-                             squeeze=False)
-    for col, ((dataset, split), part) in enumerate(groups):
-        for row, metric in enumerate(metrics):
-            ax = axes[row, col]
-            for model, line in part[part["metric"] == metric].groupby("model"):
-                line = line.sort_values("context")
-                oracle = bool(line["oracle"].iloc[0])
-                ax.plot(line["context"].astype(int), line["scaled"], marker="o", ls="--" if oracle else "-",
-                        label=f"{model} (oracle)" if oracle else model)
-            ax.set_title(f"{dataset} {split}: {metric}", fontsize=9)
-            ax.set_xlabel("context n (history turns)")
-            ax.set_ylabel(f"{metric} (scaled)")
-            ax.legend(fontsize=7)
-    fig.tight_layout()
-    return _save(fig, out)
+        raise ConfigError(f"no results for metric(s) {', '.join(missing)}")
+    return rows.assign(label=variant_models(rows))
+
+
+def _grid(plt, rows: int, cols: int, panel: tuple[float, float]):
+    width = min(style.PAGE_WIDTH, panel[0] * cols + 1.5)
+    return plt.subplots(rows, cols, figsize=(width, panel[1] * rows + 0.3), squeeze=False, layout="constrained")
+
+
+def plot_context_curves(long: pd.DataFrame, metrics: list[str], out: str | Path, dataset: str | None = None) -> Path:
+    """Each metric (scaled) against context n, one series per model and variant, for one dataset; write
+    ``out`` (PDF, SVG or PNG by extension). See the module docstring."""
+    style.figure_format(out)
+    data = labelled(long[long["context"].notna()], dataset, metrics)
+    contexts = data.groupby("split")["context"].nunique()
+    splits = sorted(contexts[contexts > 1].index)
+    if not splits:
+        raise ConfigError(f"{data['dataset'].iloc[0]} has results at one context only "
+                          f"(n = {', '.join(map(str, sorted(set(data['context']))))}); plot them with `plot bars`")
+    with style.paper_style() as plt:
+        fig, axes = _grid(plt, len(metrics), len(splits), (2.3, 1.6))
+        for col, split in enumerate(splits):
+            part = data[data["split"] == split]
+            ticks = sorted(int(n) for n in set(part["context"]))
+            for row, metric in enumerate(metrics):
+                ax = axes[row, col]
+                rows = part[part["metric"] == metric]
+                for label, line in sorted(rows.groupby("label"), key=lambda item: _order(item[0])):
+                    line = line.sort_values("context")
+                    oracle = bool(line["oracle"].iloc[0])
+                    ax.plot(line["context"].astype(int), line["scaled"], label=label + (" (oracle)" if oracle and label != "oracle" else ""),
+                            **style.model_style(label, oracle).kwargs())
+                ax.set_xticks(ticks)
+                ax.set_xlim(ticks[0] - 0.5, ticks[-1] + 0.5)
+                if row == 0:
+                    ax.set_title(f"{data['dataset'].iloc[0]} {split}")
+                if row == len(metrics) - 1:
+                    ax.set_xlabel("context n (history turns)")
+                if col == 0:
+                    ax.set_ylabel(axis_label(rows["suite"].iloc[0], metric))
+        style.legend_outside(fig, axes.ravel())
+        return style.save(fig, out)
+
+
+def _order(label: str) -> tuple[int, str]:
+    """Legend order: by model style index (known models first, in a fixed order), then label."""
+    return style.model_index(style.split_label(label)[0]), label
+
+
+def plot_bars(long: pd.DataFrame, metrics: list[str], out: str | Path, dataset: str | None = None,
+              context: int | None = None) -> Path:
+    """One bar per model and variant for each metric (rows) and split (columns) at one context (default:
+    the largest the dataset's results hold), best first (the oracle last), variants hatched, with the recorded 95 % CI as error bars; write
+    ``out`` (PDF, SVG or PNG by extension). ``long`` may carry ``ci_low`` / ``ci_high``
+    (:func:`dyadbench.leaderboard_uncertainty.with_uncertainty`). A bar scored on other predictions than
+    the panel's most common set is labelled with its number of items; the oracle is marked †."""
+    style.figure_format(out)
+    data = labelled(long, dataset, metrics)
+    contexts = sorted(int(n) for n in set(data["context"].dropna()))
+    if context is None and contexts:
+        context = contexts[-1]
+    if context is not None:
+        if context not in contexts:
+            raise ConfigError(f"no results at context n = {context} (they hold n = {', '.join(map(str, contexts))})")
+        data = data[data["context"] == context]
+    splits = sorted(set(data["split"]))
+    labels = sorted(set(data["label"]))
+    with style.paper_style() as plt:
+        fig, axes = _grid(plt, len(metrics), len(splits), (2.3, 0.2 + 0.14 * len(labels)))
+        for col, split in enumerate(splits):
+            for row, metric in enumerate(metrics):
+                rows = data[(data["split"] == split) & (data["metric"] == metric)]
+                _bars(axes[row, col], rows, metric)
+                title = f"{data['dataset'].iloc[0]} {split}" + (f", n = {context}" if context is not None else "")
+                axes[row, col].set_title(title if row == 0 else "")
+        return style.save(fig, out)
+
+
+def _bars(ax, rows: pd.DataFrame, metric: str) -> None:
+    rows = rows.dropna(subset=["scaled"])
+    if rows.empty:
+        ax.text(0.5, 0.5, f"no {metric} results", ha="center", va="center", transform=ax.transAxes)
+        ax.set_axis_off()
+        return
+    higher = rows["higher_is_better"].iloc[0]
+    rows = rows.sort_values(["oracle", "scaled"], ascending=[True, higher is False], kind="stable")
+    common = rows["items"].mode()
+    y = np.arange(len(rows))[::-1]
+    for yi, (_, r) in zip(y, rows.iterrows()):
+        series = style.model_style(r["label"], bool(r["oracle"]))
+        variant = series.linestyle != "-"  # variants and the oracle: hatched
+        ax.barh(yi, r["scaled"], color=series.color, hatch="////" if variant else None, edgecolor="white", lw=0.3)
+        low, high = r.get("ci_low", np.nan), r.get("ci_high", np.nan)
+        if pd.notna(low) and pd.notna(high):
+            ax.errorbar(r["scaled"], yi, xerr=[[r["scaled"] - low], [high - r["scaled"]]], color="black",
+                        lw=0.7, capsize=1.5)
+    names = [r["label"] + ("†" if r["oracle"] else "") + ("" if common.empty or r["items"] == common.iloc[0]
+                                                           else f" ({int(r['items'])} items)")
+             for _, r in rows.iterrows()]
+    ax.set_yticks(y, names)
+    ax.set_xlabel(axis_label(rows["suite"].iloc[0], metric))
+    ax.axvline(0.0, color="grey", lw=0.5)
