@@ -58,6 +58,8 @@ class Registry:
 
 MODELS = Registry("model")
 DATASETS = Registry("dataset")
+# The embedded corpus a run uses when it names neither --dataset nor --data.
+DEFAULT_EMBEDDED = "synthetic"
 SUITES = Registry("metric suite")
 EVALUATORS = Registry("frozen evaluator")
 
@@ -68,6 +70,9 @@ SUITES.add("react", "dyadbench.scoring.react:score_paths",
            "REACT 2023/2024 suite: FRCorr, FRDist, FRDiv, FRVar, FRDvs, FRSyn")
 SUITES.add("l2l", "dyadbench.scoring.l2l:score_paths",
            "Learning2Listen-line suite: L2, FD, P-FD, Var, SI, rPCC")
+SUITES.add("seamless", "dyadbench.scoring.seamless:score_paths",
+           "Seamless Interaction suite: FD, P-FD, MSE, SID, rPCC, Var, Div per expression/head(/gaze); FRCorr, "
+           "FRDist, FRVar, FRSyn on the 34-d emotion stream; invalid frames excluded")
 SUITES.add("gaze", "dyadbench.scoring.gaze:score_paths",
            "Gaze-head suite (StyGazeTalk): MAE, Vel, MEE, FixRatio, CompScore, SimWithGT, BAS")
 
@@ -89,6 +94,11 @@ DATASETS.add("l2l", "dyadbench.datasets.l2l:open_split",
              "the listener is generated and scored with the l2l suite)")
 DATASETS.add("react", "dyadbench.datasets.react:open_split",
              "REACT 2023/2024 layout: split csv, Emotion csv, 3D_FV npy, neighbour matrix")
+DATASETS.add("seamless", "dyadbench.datasets.seamless:open_split",
+             "Seamless Interaction <label>/<split>/ participant bundles (npz+wav or per-modality), 30 Hz movement "
+             "features (expression 128, head 3, emotion 34, validity), 48 kHz speech read at 16 kHz")
+DATASETS.add("seamless-gaze", "dyadbench.datasets.seamless:open_split_gaze",
+             "Seamless Interaction with the 2-d gaze encoding in the motion layout")
 DATASETS.add("gaze", "dyadbench.datasets.gaze:open_split",
              "dyadbench gaze-head session layout (7 angles in degrees at 25 fps + 16 kHz speech)")
 DATASETS.add("synthetic-gaze", "dyadbench.datasets.synthetic_gaze:open_synthetic_split",

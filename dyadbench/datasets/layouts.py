@@ -49,6 +49,10 @@ LAYOUTS: dict[str, Layout] = {
     "l2l": Layout("l2l", "dyadbench.synth.l2l_writer:write_l2l_split",
                   "dyadbench.datasets.l2l:validate_folder", "dyadbench.datasets.l2l:folder_info",
                   "Learning2Listen <host>/{train,test}/p{0,1}_*_clean_deca.npy arrays"),
+    "seamless": Layout("seamless", "dyadbench.synth.seamless_writer:write_seamless_split",
+                       "dyadbench.datasets.seamless:validate_folder", "dyadbench.datasets.seamless:folder_info",
+                       "Seamless Interaction <label>/<split>/: V_S_I_P participant npz + 48 kHz wav (and the "
+                       "per-modality layout), 30 Hz movement features with 2-s invalid blocks"),
     "gaze": Layout("gaze", "dyadbench.synth.gaze_writer:write_gaze_split",
                    "dyadbench.datasets.gaze:validate_folder", "dyadbench.datasets.gaze:folder_info",
                    "dyadbench gaze-head sessions: <session>.npz (7 angles, deg) + <session>.wav + speaker id"),

@@ -96,7 +96,8 @@ class SuiteColumns:
 
 #: The suites whose modules declare ``COLUMNS`` (imported only when asked for).
 SUITE_MODULES = {"dualtalk": "dyadbench.metrics.dualtalk", "l2l": "dyadbench.metrics.l2l",
-                 "gaze": "dyadbench.metrics.gaze", "react": "dyadbench.metrics.react"}
+                 "gaze": "dyadbench.metrics.gaze", "react": "dyadbench.metrics.react",
+                 "seamless": "dyadbench.metrics.seamless"}
 
 
 def declared(suite: str) -> SuiteColumns | None:

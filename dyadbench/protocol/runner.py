@@ -37,6 +37,7 @@ from tqdm import tqdm
 from dyadbench import atomic
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
+from dyadbench.motion import LAYOUTS
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions, OfflineModel, StreamingModel
 from dyadbench.protocol.noise_scale import resolve_noise_scale
@@ -53,7 +54,7 @@ from dyadbench.scoring.report import ScoreItem
 from dyadbench.workers import process_map
 
 #: Metric suite of each motion layout (module dyadbench.scoring.<suite> provides score_arrays).
-SUITE_OF_LAYOUT = {"flame56": "dualtalk", "gaze7": "gaze"}
+SUITE_OF_LAYOUT = {"flame56": "dualtalk", "gaze7": "gaze", "seamless": "seamless", "seamless-gaze": "seamless"}
 
 
 def open_dataset_split(dataset: str, root: Path | None, split: str) -> ClipSource:
@@ -160,7 +161,8 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     if threads is not None:
         set_threads(threads)
     if model.info.layout != layout:
-        raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion; the split is {layout}")
+        raise ConfigError(f"model {model_name!r} produces {model.info.layout} motion ({LAYOUTS[model.info.layout].dim} "
+                          f"dims); the split is {layout} ({LAYOUTS[layout].dim} dims at {source.load(ids[0]).fps:g} fps)")
     config = resolve_noise_scale(config, options.train_split)
     train = train_record(options.train_split)
     data_digest = split_digest(source, ids)
