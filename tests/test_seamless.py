@@ -1,0 +1,102 @@
+"""Seamless Interaction: discovery in both layouts, pairing problems, validity masking, resampling, eval."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from dyadbench.cli import cli
+from dyadbench.datasets.seamless import SEAMLESS, open_split, validate_folder
+from dyadbench.datasets.seamless_audio import to_16k
+from dyadbench.metrics import dualtalk
+from dyadbench.metrics.seamless import item_metrics
+from dyadbench.synth.seamless_writer import write_seamless_split
+
+
+@pytest.fixture(scope="module")
+def root(tmp_path_factory):
+    out = tmp_path_factory.mktemp("seamless")
+    for split in ("test", "train"):
+        write_seamless_split(out, split=split, clips=10, progress=False)
+    return out
+
+
+def test_discovery_both_layouts_and_skips(root):
+    source = open_split(root, "improvised/test")
+    ids = source.clip_ids()
+    # dyads 7 (second bundle empty) and 8 (vendor V01, no movement) are skipped; 9 is per-modality
+    assert len(ids) == 8 and "V00_S2000_I00000009" in ids
+    assert not any(i.endswith(("I00000007", "I00000008")) for i in ids)
+    reasons = " ".join(s["reason"] for s in source.skipped)
+    assert "V00_S2000_I00000007_P20015.npz: empty bundle (0 frames)" in reasons
+    assert "no movement features" in reasons
+    clip = source.load("V00_S2000_I00000009")  # per-modality layout
+    assert clip.fps == 30.0 and clip.sample_rate == 16_000
+    assert clip.participants[0].motion.shape[1] == SEAMLESS.dim
+    assert clip.participants[0].audio.shape[0] == pytest.approx(clip.num_frames / 30 * 16_000, abs=2)
+
+
+def test_pairing_errors_reported(root, tmp_path):
+    import shutil
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    lone = next((copy / "improvised" / "test").rglob("V00_S2000_I00000000_P20001.npz"))
+    lone.unlink()
+    (lone.parent / "not_a_stem.npz").write_bytes(lone.with_suffix(".wav").read_bytes()[:0])
+    report = validate_folder(copy, progress=False)
+    text = report.summary()
+    assert "V00_S2000_I00000000: skipped: 1 usable participant(s) of 1" in text
+    assert "not_a_stem.npz" in text
+    assert "dyad(s) skipped" in text
+
+
+def _motion(rng, frames, valid):
+    m = np.zeros((frames, SEAMLESS.dim))
+    m[:, :-1] = rng.standard_normal((frames, SEAMLESS.dim - 1))
+    m[~valid, :-1] = 0.0
+    m[:, -1] = valid
+    return m
+
+
+def test_invalid_blocks_excluded_from_every_metric():
+    rng = np.random.default_rng(0)
+    valid = np.ones(240, bool)
+    valid[60:120] = False  # one zero-filled 2-s block
+    gt, partner = _motion(rng, 240, valid), _motion(rng, 240, np.ones(240, bool))
+    pred = gt.copy()
+    pred[~valid, :-1] = 5.0  # whatever a model emits there must not count
+    out = item_metrics(pred, gt, partner, SEAMLESS, seed=0)
+    # independent: FD over the 180 valid frames only is 0 (prediction = ground truth there)
+    assert out["fd_expression"] == pytest.approx(0.0, abs=1e-6) and out["mse_expression"] == 0.0
+    assert out["frames_excluded"] == 60 and out["frames_scored"] == 180
+    # scoring the invalid frames would change FD
+    assert dualtalk.fd(pred[:, :128], gt[:, :128]) > 1.0
+
+
+def test_resampler_sine_and_aliasing():
+    t = np.arange(48_000) / 48_000
+    tone = to_16k(0.5 * np.sin(2 * np.pi * 1000 * t))
+    assert len(tone) == 16_000
+    middle = tone[1000:-1000]
+    assert np.abs(middle).max() == pytest.approx(0.5, rel=0.01)
+    spectrum = np.abs(np.fft.rfft(tone))
+    assert np.argmax(spectrum) == 1000  # 1 Hz bins over one second
+    alias = to_16k(0.5 * np.sin(2 * np.pi * 10_000 * t))[1000:-1000]
+    assert np.sqrt(np.mean(alias ** 2)) < 0.01 * 0.5 / np.sqrt(2)
+
+
+def test_eval_mime_and_leaderboard_row_and_reference_refusal(root, tmp_path):
+    runner = CliRunner()
+    out = tmp_path / "run"
+    result = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "mime",
+                                  "--split", "test", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    assert (out / "result.json").is_file()
+    board = runner.invoke(cli, ["leaderboard", str(out / "result.json"), "--out", str(tmp_path / "boards"), "--no-paper"])
+    assert board.exit_code == 0, board.output
+    assert "mime" in board.output
+    refused = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "timar",
+                                   "--split", "test", "--out", str(tmp_path / "timar")])
+    assert refused.exit_code != 0
+    assert "56 dims); the split is seamless (166 dims at 30 fps)" in str(refused.exception)
