@@ -240,7 +240,7 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "
     head = index + ["rank", "items"]
     if part.empty:
         return pd.DataFrame(columns=head + columns)
-    part = part.assign(context=part["context"].astype("Int64").astype(str).replace("<NA>", ""),
+    part = part.assign(context=part["context"].astype("Int64").astype(str).fillna("").replace("<NA>", ""),
                        model=variant_models(part), flags=part["flags"].fillna(""),
                        rank_group=prediction_sets(part))
     wide = part.pivot_table(index=index, columns="metric", values="scaled", aggfunc="first").reset_index()
@@ -250,10 +250,32 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "
     shown = [c for key in columns for c in (key, *spread.columns(key, uncertainty))]
     items = part.groupby(index, dropna=False)["items"].first().astype("Int64").reset_index()
     wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + shown)
+    wide = pd.concat([wide, _reference_rows(part, declared(suite))], ignore_index=True)
     wide["rank"] = _ranks(wide, declared(suite))
-    wide = wide.assign(_largest=-wide["items"].astype("float64")).sort_values(
-        SETTING + ["_largest", "rank_group", "oracle", "rank", "model"], kind="stable", na_position="last")
+    wide = wide.assign(_largest=-wide["items"].astype("float64"), _reference=wide["flags"] == REFERENCE).sort_values(
+        SETTING + ["_largest", "rank_group", "oracle", "_reference", "rank", "model"], kind="stable",
+        na_position="last")
     return wide[head + shown].reset_index(drop=True)
+
+
+#: The ``model`` and ``flags`` of a wide table's ground-truth row.
+REFERENCE_MODEL = "ground truth"
+REFERENCE = "reference"
+
+
+def _reference_rows(part: pd.DataFrame, columns: SuiteColumns | None) -> pd.DataFrame:
+    """One ground-truth row per setting and prediction set: the ground truth's own values of the suite's
+    reference keys (e.g. ``var_gt_exp``) under the columns they refer to (``var_exp``); flagged
+    :data:`REFERENCE`, so never ranked or bolded. Empty when the suite declares no reference keys."""
+    references = {} if columns is None else columns.references()
+    rows = part[part["metric"].isin(references)]
+    if rows.empty:
+        return pd.DataFrame()
+    keys = SETTING + ["rank_group"]
+    values = rows.assign(metric=rows["metric"].map(references)).pivot_table(
+        index=keys, columns="metric", values="scaled", aggfunc="first")
+    items = rows.groupby(keys)["items"].first().astype("Int64")
+    return values.assign(items=items).reset_index().assign(model=REFERENCE_MODEL, oracle=False, flags=REFERENCE)
 
 
 def _ranks(wide: pd.DataFrame, columns: SuiteColumns | None) -> pd.Series:
@@ -314,14 +336,17 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
             lines += _latex_rows(group, columns, specs, digits)
         lines.append(r"\midrule")
     lines[-1] = r"\bottomrule"
-    lines.append(r"\end{tabular}")
+    lines += [r"\end{tabular}", r"% booktabs rules: \usepackage{booktabs}"]
     if several:
         lines.append(r"% Rows are ranked, and best values bolded, only among rows scored on the same predictions "
                      r"(same items and clips, no conflicting data digest): each such set is headed ``ranked among''.")
     if wide["oracle"].astype(bool).any():
         lines.append(r"% $^\dagger$ oracle: copies the ground truth; a pipeline check, never ranked.")
-    if (wide["flags"] != "").any():
+    if ((wide["flags"] != "") & (wide["flags"] != REFERENCE)).any():
         lines.append(r"% $^\ddagger$ flagged (e.g. the train split held evaluated clips); never ranked.")
+    if (wide["flags"] == REFERENCE).any():
+        lines.append(r"% \emph{ground truth}: the ground truth's own values of the columns judged by their closeness "
+                     r"to it; never ranked.")
     return "\n".join(lines) + "\n"
 
 
@@ -341,12 +366,15 @@ def _latex_rows(group: pd.DataFrame, columns: list[str], specs: SuiteColumns | N
             best[c] = values.max() if higher else values.min()
     lines = []
     for _, row in group.iterrows():
-        name = latex_escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
-            r"$^\ddagger$" if row["flags"] else "")
+        if row["flags"] == REFERENCE:
+            name = rf"\emph{{{latex_escape(str(row['model']))}}}"
+        else:
+            name = latex_escape(str(row["model"])) + (r"$^\dagger$" if row["oracle"] else "") + (
+                r"$^\ddagger$" if row["flags"] else "")
         cells = [name]
         for c in columns:
             v = float(row[c]) if pd.notna(row[c]) else math.nan
-            text = "--" if math.isnan(v) else f"{v:.{digits}f}"
+            text = "--" if math.isnan(v) else f"{v:.{digits}f}".removeprefix("-" if round(v, digits) == 0 else "")
             if c in best and row.name in ranked.index and not math.isnan(v) and np.isclose(v, best[c]):
                 text = rf"\textbf{{{text}}}"
             cells.append(text + spread.latex_suffix(row, c, digits))

@@ -25,7 +25,9 @@ class ColumnSpec:
     """One metric key: ``header`` as printed; ``higher_is_better`` None for descriptive columns (a
     variance, a ground-truth reference value: judged against the ground truth, never ordered);
     ``scale`` the publication factor (printed = raw × scale); ``unit`` the printed name of the scale
-    (default ``x10`` / ``x1e3``); ``table`` False for keys kept in results and ``long.csv`` only."""
+    (default ``x10`` / ``x1e3``); ``table`` False for keys kept in results and ``long.csv`` only;
+    ``reference`` the printed key of which this is the ground truth's own value (e.g. ``var_gt_exp`` for
+    ``var_exp``): the wide tables show it in a ground-truth row under that column, never as a column."""
 
     key: str
     header: str
@@ -33,6 +35,7 @@ class ColumnSpec:
     scale: float = 1.0
     unit: str | None = None
     table: bool = True
+    reference: str | None = None
 
     def scale_label(self) -> str:
         """How the scale is printed: ``unit`` if given, else ``x10^k`` as ``x10`` / ``x1e3``; '' for 1."""
@@ -65,6 +68,11 @@ class SuiteColumns:
         spec = self.spec(self.primary)
         if spec is None or spec.higher_is_better is None or not spec.table:
             raise ValueError(f"{self.suite}: the primary column {self.primary!r} must be a printed, ordered column")
+        for c in self.columns:
+            target = None if c.reference is None else self.spec(c.reference)
+            if c.reference is not None and (c.table or target is None or not target.table or target.scale != c.scale):
+                raise ValueError(f"{self.suite}: {c.key} must be unprinted and refer to a printed column of its "
+                                 f"scale, not {c.reference!r}")
 
     def spec(self, key: str) -> ColumnSpec | None:
         return next((c for c in self.columns if c.key == key), None)
@@ -80,6 +88,10 @@ class SuiteColumns:
     def table_columns(self, present: set[str] | None = None) -> list[ColumnSpec]:
         """Printed columns in order; with ``present``, only those keys."""
         return [c for c in self.columns if c.table and (present is None or c.key in present)]
+
+    def references(self) -> dict[str, str]:
+        """Ground-truth reference key -> the printed key it is shown under (see :class:`ColumnSpec`)."""
+        return {c.key: c.reference for c in self.columns if c.reference is not None}
 
     def scaled(self, metrics: dict[str, float]) -> dict[str, float]:
         """Publication values of raw ``metrics``: raw × :meth:`scale` for every key."""

@@ -64,7 +64,7 @@ GROUP_HEADERS = {"all": "All", "gaze": "Gaze", "head": "Head"}
 BAS_VARIANTS = ("bas", "bas_shuffled", "bas_delta", "bas_a2m", "bas_a2m_shuffled", "bas_a2m_delta")
 
 
-def _column(key: str, header: str, table: bool = True) -> ColumnSpec:
+def _column(key: str, header: str, table: bool = True, reference: str | None = None) -> ColumnSpec:
     """A key's declaration: its metric's direction (:data:`METRICS`; None for ground-truth reference values
     ``gt_*``, shuffled-speech references and the saccade ratio, judged against the ground truth's), scale
     100 printed as % for the fixation/saccade ratios."""
@@ -72,16 +72,18 @@ def _column(key: str, header: str, table: bool = True) -> ColumnSpec:
     for group in GROUPS:
         base = base.removesuffix(f"_{group}")
     base = base.replace("bas_a2m", "bas")
-    reference = key.startswith("gt_") or "shuffled" in key or base == "saccade_ratio"
-    direction = None if reference else METRICS[base].higher_is_better
+    descriptive = key.startswith("gt_") or "shuffled" in key or base == "saccade_ratio"
+    direction = None if descriptive else METRICS[base].higher_is_better
     percent = base.removeprefix("gt_") in ("fix_ratio", "saccade_ratio")
-    return ColumnSpec(key, header, direction, 100.0 if percent else 1.0, "%" if percent else None, table)
+    return ColumnSpec(key, header, direction, 100.0 if percent else 1.0, "%" if percent else None,
+                      table and reference is None, reference)
 
 
 def _columns() -> SuiteColumns:
-    """StyGazeTalk Table 2 (per group: MAE, Vel, MEE, BAS; CE after All), Table 3 (saccade %, fixation %,
-    CompScore, SimScore), dyadbench's printed extras and the ground truth's Table 3 row; then every other
-    key the suite reports (kept in results and ``long.csv``). Ranked by SimScore (``sim_gt``, higher is
+    """StyGazeTalk Table 2 (per group: MAE, Vel, MEE, BAS; CE after All) and Table 3 (saccade %, fixation %,
+    CompScore, SimScore) printed, the ground truth's Table 3 values as the tables' ground-truth row; then
+    dyadbench's extras (Head dBAS, Sim_seq) and every other key the suite reports (kept in results and
+    ``long.csv``). Ranked by SimScore (``sim_gt``, higher is
     better), the paper's summary of gaze behaviour."""
     table2 = []
     for group, title in GROUP_HEADERS.items():
@@ -89,13 +91,15 @@ def _columns() -> SuiteColumns:
         table2 += [("style_ce", "CE")] if group == "all" else []
         table2 += [(f"bas_{group}", f"{title} BAS")]
     printed = table2 + [
-        ("saccade_ratio", "saccade"), ("fix_ratio", "fixation"), ("comp_score", "CompScore"), ("sim_gt", "SimScore"),
-        ("bas_delta_head", "Head dBAS"), ("sim_gt_seq", "Sim_seq"),
-        ("gt_saccade_ratio", "GT saccade"), ("gt_fix_ratio", "GT fixation"), ("gt_comp_score", "GT CompScore")]
+        ("saccade_ratio", "saccade"), ("fix_ratio", "fixation"), ("comp_score", "CompScore"), ("sim_gt", "SimScore")]
+    extras = [("bas_delta_head", "Head dBAS"), ("sim_gt_seq", "Sim_seq")]
+    references = [("gt_saccade_ratio", "GT saccade"), ("gt_fix_ratio", "GT fixation"), ("gt_comp_score", "GT CompScore")]
     others = ([f"{m}_{g}" for m in ("vel_abs", "mee_frame") for g in GROUPS]
               + [f"{prefix}{v}_{g}" for prefix in ("", "gt_") for v in BAS_VARIANTS for g in GROUPS])
-    seen = {key for key, _ in printed}
+    seen = {key for key, _ in printed + extras + references}
     return SuiteColumns("gaze", tuple([_column(k, h) for k, h in printed]
+                                      + [_column(k, h, table=False) for k, h in extras]
+                                      + [_column(k, h, reference=k.removeprefix("gt_")) for k, h in references]
                                       + [_column(k, k, table=False) for k in others if k not in seen]),
                         primary="sim_gt")
 
