@@ -13,6 +13,12 @@ scoring, so kept without per-clip values) with the method that gave them. Fields
 added later have defaults, so older files load. :func:`load_result` reads one back and rejects
 malformed files with a message naming the file and the field; :func:`results_frame` loads many into a
 long :class:`pandas.DataFrame`, the only input of the leaderboards.
+
+``dyadbench score`` writes the same result for predictions made anywhere (:func:`external_result`):
+protocol :data:`EXTERNAL` ("external predictions"), whose turn length, context, tail, history policy and
+guidance scale dyadbench cannot know (None), the scoring seed as the seed, the model named by the user.
+Files that ``score`` wrote before (``results.json``: the scores without model, data and protocol
+records) load as such a result too (:func:`from_score_file`).
 """
 
 from __future__ import annotations
@@ -32,6 +38,8 @@ from dyadbench import __version__, atomic, strict_json
 from dyadbench.errors import InputError
 
 SCHEMA = "dyadbench.eval-result/1"
+#: Protocol name of a result scored from predictions on disk (``dyadbench score``), not run by dyadbench.
+EXTERNAL = "external predictions"
 
 
 @dataclass(frozen=True)
@@ -58,13 +66,13 @@ class DataRecord:
 
 @dataclass(frozen=True)
 class ProtocolRecord:
-    name: str  # "streaming" or "offline"
-    turn_seconds: float
-    context: int
-    tail: str
-    history_agent: str
-    cfg_scale: float
-    seed: int
+    name: str  # "streaming", "offline" or EXTERNAL (the settings below unknown: None)
+    turn_seconds: float | None
+    context: int | None
+    tail: str | None
+    history_agent: str | None
+    cfg_scale: float | None
+    seed: int  # the run's seed (EXTERNAL: the seed of the randomised metrics)
     speech_norm: str = "window"  # "clip": waveforms normalised with whole-clip statistics (not strictly causal)
     perturbations: str = ""  # input perturbations, "+"-joined (dyadbench.protocol.perturbations.describe)
     noise_scale: float | None = None  # motion-noise scale of a perturbed run (None: none used)
@@ -149,6 +157,11 @@ class EvalResult:
     def per_clip_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.per_clip)
 
+    @property
+    def external(self) -> bool:
+        """True for predictions scored by ``dyadbench score`` (made outside dyadbench's protocol)."""
+        return self.protocol.name == EXTERNAL
+
     def flags(self) -> str:
         """Why the run must not be ranked besides being an oracle: ``train-overlap=N`` when its train split
         held N of the evaluated clips (run with --allow-train-overlap); empty otherwise."""
@@ -211,7 +224,88 @@ def load_result(path: str | Path) -> EvalResult:
         raise InputError(path, "result file not found") from None
     except (OSError, ValueError) as exc:  # UnicodeDecodeError and JSONDecodeError are ValueErrors
         raise InputError(path, f"not readable JSON ({exc})") from None
+    if isinstance(data, dict) and "schema" not in data and {"suite", "metrics", "n_scored"} <= set(data):
+        return from_score_file(data, path)
     return EvalResult.from_dict(data, path)
+
+
+def external_result(report, *, model: str, dataset: str, split: str, root: str | None, predictions: str,
+                    wall_s: float, seed: int) -> EvalResult:
+    """The typed result of predictions scored from disk (``dyadbench score``): ``report`` is the suite's
+    :class:`~dyadbench.scoring.report.ScoreReport`, ``model`` the name the predictions are ranked under.
+
+    ``clips`` counts the dialogues of the scored items (:func:`dyadbench.uncertainty.dialogue_of`), ``items``
+    the scored predictions; the protocol is :data:`EXTERNAL` with the scoring seed; timing is the scoring
+    wall time (no model ran: 0 turns); the score configuration is kept under ``model.config``.
+    """
+    from dyadbench.uncertainty import dialogue_of  # noqa: PLC0415  (imports the gaze layout)
+
+    rows = list(report.per_item)
+    return EvalResult(
+        model=ModelRecord(name=model, version=EXTERNAL, weights_digest=None, weights_path=None, oracle=False,
+                          layout=_SUITE_LAYOUTS.get(report.suite, report.suite), config=dict(report.config)),
+        data=DataRecord(dataset=dataset, split=split, root=root,
+                        clips=len({dialogue_of(report.suite, str(r["clip"])) for r in rows}), items=len(rows)),
+        protocol=ProtocolRecord(name=EXTERNAL, turn_seconds=None, context=None, tail=None, history_agent=None,
+                                cfg_scale=None, seed=seed),
+        suite=report.suite, metrics=dict(report.metrics), scaled=dict(report.scaled),
+        scaling=dict(report.scaling), per_clip=rows, coverage=dict(report.coverage),
+        excluded=list(report.excluded), notes=list(report.notes), predictions=predictions,
+        timing=TimingRecord(wall_s=wall_s, model_s=0.0, turns=0, mean_turn_latency_s=0.0),
+        environment=environment(), created_utc=utc_now(), uncertainty=dict(report.uncertainty),
+        uncertainty_method=dict(report.uncertainty_method))
+
+
+#: The motion layout (:data:`dyadbench.motion.LAYOUTS`) of each suite's predictions.
+_SUITE_LAYOUTS = {"dualtalk": "flame56", "l2l": "flame56", "gaze": "gaze7", "react": "react25"}
+
+
+def from_score_file(data: dict, path: Path) -> EvalResult:
+    """A ``results.json`` written by ``dyadbench score`` before it wrote typed results, as an
+    :func:`external_result`: the model is named by the file's folder, the data by the recorded ground
+    truth (``config.gt``), per-clip values come from the ``per_clip.csv`` beside it (none when absent)."""
+    for key in ("metrics", "config", "coverage"):
+        if not isinstance(data.get(key), dict):
+            raise InputError(path, f"field {key!r} missing or not an object (an old dyadbench score results.json?)")
+    if not isinstance(data["suite"], str):
+        raise InputError(path, "field 'suite' is not a string")
+    config = data["config"]
+    per_clip = path.parent / "per_clip.csv"
+    rows = pd.read_csv(per_clip, dtype={"clip": str}).to_dict("records") if per_clip.is_file() else []
+    scores = _OldScores(suite=data["suite"], metrics=_numbers(data["metrics"], path, "metrics"),
+                        scaled=_numbers(data.get("scaled") or {}, path, "scaled"),
+                        scaling=_numbers(data.get("scaling") or {}, path, "scaling"), config=config,
+                        per_item=rows, coverage=data["coverage"], excluded=data.get("excluded") or [],
+                        notes=data.get("notes") or [], uncertainty=data.get("uncertainty") or {},
+                        uncertainty_method=data.get("uncertainty_method") or {})
+    gt = str(config.get("gt", ""))
+    result = external_result(scores, model=path.parent.name, dataset=data["suite"], split=Path(gt).name,
+                             root=gt or None, predictions=str(config.get("pred", "")) or None,
+                             wall_s=0.0, seed=int(config.get("seed", 0)))
+    if not rows:  # items and clips as recorded (the per-clip file is gone)
+        result.data = DataRecord(dataset=result.data.dataset, split=result.data.split, root=result.data.root,
+                                 clips=int(result.uncertainty_method.get("clusters", data["n_scored"])),
+                                 items=int(data["n_scored"]))
+    result.environment = {"dyadbench": data.get("dyadbench_version")}
+    result.created_utc = ""
+    return result
+
+
+@dataclass(frozen=True)
+class _OldScores:
+    """The fields of an old ``score`` results.json that :func:`external_result` reads."""
+
+    suite: str
+    metrics: dict
+    scaled: dict
+    scaling: dict
+    config: dict
+    per_item: list
+    coverage: dict
+    excluded: list
+    notes: list
+    uncertainty: dict
+    uncertainty_method: dict
 
 
 def result_files(paths: Iterable[str | Path]) -> list[Path]:

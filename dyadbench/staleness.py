@@ -131,6 +131,9 @@ class Checker:
     def check(self, path: Path) -> Verdict:
         """The verdict on one result file (an unreadable file raises the loader's InputError)."""
         result = load_result(path)
+        if result.external:
+            return Verdict(path, result.model.name, UNVERIFIED, ("predictions made outside dyadbench (dyadbench "
+                                                                 "score): no run to compare with",))
         run = recorded_run(result)
         try:
             info, train = self.model(run)

@@ -13,8 +13,9 @@ from threadpoolctl import threadpool_limits
 from dyadbench.cli import main
 from dyadbench.datasets.dualtalk_files import load_gt_npz, write_gt_npz
 from dyadbench.errors import InputError
-from dyadbench.metrics.dualtalk import KEYS, SCALE, clip_metrics
-from dyadbench.scoring.dualtalk import score_arrays, score_paths
+from dyadbench.metrics.dualtalk import KEYS, PARTNER_KEYS, SCALE, clip_metrics
+from dyadbench.results import load_result
+from dyadbench.scoring.dualtalk import partner_stem, score_arrays, score_paths
 from dyadbench.scoring.report import ScoreItem
 from dyadbench.seeding import derive_seed
 
@@ -57,7 +58,7 @@ def run(capsys, *args):
 
 
 def _results(out):
-    return json.loads((out / "results.json").read_text()), pd.read_csv(out / "per_clip.csv")
+    return json.loads((out / "result.json").read_text()), pd.read_csv(out / "per_clip.csv")
 
 
 def test_outputs_and_table(dataset, tmp_path, capsys):
@@ -70,18 +71,20 @@ def test_outputs_and_table(dataset, tmp_path, capsys):
     assert [out.index(h) for h in order] == sorted(out.index(h) for h in order)
     assert max(len(line) for line in out.splitlines()[1:-1]) <= 100
     results, frame = _results(tmp_path / "res")
-    for key in ("metrics", "scaled", "n_scored", "excluded", "coverage", "config", "dyadbench_version",
-                "scaling"):
-        assert key in results
+    assert results["schema"] == "dyadbench.eval-result/1"
+    assert load_result(tmp_path / "res" / "result.json").external
+    assert results["protocol"]["name"] == "external predictions" and results["protocol"]["context"] is None
+    assert results["model"]["name"] == "pred" and results["predictions"] == str(pred)  # PRED's name by default
     assert list(results["metrics"]) == list(KEYS)
-    assert results["n_scored"] == 6 and results["coverage"]["expected"] == 6
+    assert results["data"]["items"] == 6 and results["data"]["clips"] == 3 and results["coverage"]["expected"] == 6
     assert list(frame.columns) == ["clip", *KEYS]
     assert list(frame["clip"]) == [f"{c}_speaker{k}" for c in CLIPS for k in (1, 2)]
     # plain mean over clips, and publication scaling
     for key in KEYS:
         assert results["metrics"][key] == pytest.approx(frame[key].mean(), rel=1e-9)
         assert results["scaled"][key] == pytest.approx(results["metrics"][key] * SCALE[key])
-    assert results["config"]["seed"] == 0 and "derive_seed(seed, stem)" in results["config"]["diversity_seed_rule"]
+    config = results["model"]["config"]
+    assert results["protocol"]["seed"] == 0 and "derive_seed(seed, stem)" in config["diversity_seed_rule"]
 
 
 def test_per_clip_values_are_the_metric_functions(dataset):
@@ -144,11 +147,22 @@ def test_complete_set_passes_strict(dataset, capsys):
 
 
 @pytest.mark.parametrize("missing", ["dlgB_speaker1", "dlgB_speaker2"])
-def test_missing_gt_or_partner_file_is_named(dataset, capsys, missing):
+def test_missing_partner_file_is_named_and_partner_metrics_not_computable(dataset, tmp_path, capsys, missing):
     gt, pred = dataset
     (gt / f"{missing}.npz").unlink()
-    code, _, err = run(capsys, pred, "--gt", gt)
-    assert code == 2 and f"{missing}.npz" in err and "not found" in err
+    code, out, err = run(capsys, pred, "--gt", gt, "--out", tmp_path / "res")
+    assert code == 0, err
+    assert "scored 5 of 5" in out and "1 of them without pfd, rpcc" in out
+    assert "P-FD, rPCC not computable for 1 of 5 clips" in out
+    other = partner_stem(missing)
+    result = load_result(tmp_path / "res" / "result.json")
+    assert result.coverage["not_computable"] == [
+        {"clip": other, "metrics": list(PARTNER_KEYS), "reason": f"partner ground truth {gt / missing}.npz not found"}]
+    assert result.coverage["extra"] == [missing]
+    row = next(r for r in result.per_clip if r["clip"] == other)
+    assert all(math.isnan(row[k]) for k in PARTNER_KEYS)
+    assert all(math.isfinite(row[k]) for k in KEYS if k not in PARTNER_KEYS)
+    assert other not in result.coverage["undefined"].get("pfd_exp", [])
 
 
 def test_wrong_width_is_named(dataset, capsys):
@@ -219,10 +233,13 @@ def test_short_clips_give_undefined_diversity_with_a_note(tmp_path, capsys):
     assert report.metrics["div_pred_exp"] == pytest.approx(np.mean(defined))
 
 
-def test_score_arrays_requires_partner():
+def test_score_arrays_without_partner_scores_the_rest():
     rng = np.random.default_rng(2)
-    with pytest.raises(InputError, match="partner"):
-        score_arrays([ScoreItem("x_speaker1", _smooth(rng), _smooth(rng))])
+    pred, gt = _smooth(rng), _smooth(rng)
+    report = score_arrays([ScoreItem("x_speaker1", pred, gt)])
+    assert report.coverage["not_computable"][0]["reason"] == "no partner ground truth given (partner=None)"
+    assert math.isnan(report.metrics["pfd_exp"]) and math.isnan(report.metrics["rpcc_jaw"])
+    assert report.metrics["mse_exp"] == pytest.approx(np.mean((pred[:, :50] - gt[:, :50]) ** 2), rel=1e-12)
 
 
 def test_seed_changes_only_diversity(dataset):
@@ -234,13 +251,29 @@ def test_seed_changes_only_diversity(dataset):
 
 
 @pytest.mark.skipif(not DEMO.is_dir(), reason="DualTalk demo clips not available")
-def test_real_demo_folder_names_the_missing_partner(tmp_path, capsys):
+def test_real_demo_clips_score_without_their_missing_partners(tmp_path, capsys):
+    """The released demo clips (one participant's npz each): every metric without the partner is scored,
+    P-FD and rPCC are not computable and say why. A copy of the ground truth scores MSE = STS = 0,
+    FD ~ 0 and Var = Var-GT, Div = Div-GT (same draws)."""
     pred = tmp_path / "pred"
     pred.mkdir()
-    stem = "xkHwlcDSOjc_sub_video_109_000_speaker1"
-    np.save(pred / f"{stem}.npy", load_gt_npz(DEMO / f"{stem}.npz"))
-    code, _, err = run(capsys, pred, "--gt", DEMO)
-    assert code == 2 and "xkHwlcDSOjc_sub_video_109_000_speaker2.npz" in err
+    stems = sorted(f.stem for f in DEMO.glob("*.npz"))
+    assert len(stems) == 2
+    for stem in stems:
+        np.save(pred / f"{stem}.npy", load_gt_npz(DEMO / f"{stem}.npz"))
+    code, out, err = run(capsys, pred, "--gt", DEMO, "--out", tmp_path / "res", "--strict")
+    assert code == 0, err
+    assert "scored 2 of 2; 2 of them without pfd, rpcc" in out
+    result = load_result(tmp_path / "res" / "result.json")
+    missing = {e["clip"]: e["reason"] for e in result.coverage["not_computable"]}
+    assert missing == {s: f"partner ground truth {DEMO / partner_stem(s)}.npz not found" for s in stems}
+    for key in PARTNER_KEYS:
+        assert math.isnan(result.metrics[key])
+    for c in ("exp", "jaw", "pose"):
+        assert result.metrics[f"mse_{c}"] == 0.0 and result.metrics[f"sts_{c}"] == 0.0
+        assert abs(result.metrics[f"fd_{c}"]) < 1e-6
+        assert result.metrics[f"var_pred_{c}"] == result.metrics[f"var_gt_{c}"]
+        assert result.metrics[f"div_pred_{c}"] == result.metrics[f"div_gt_{c}"]
 
 
 @pytest.mark.skipif(not DEMO.is_dir(), reason="DualTalk demo clips not available")
@@ -281,12 +314,23 @@ def test_predictions_without_ground_truth_are_extra_not_fatal(dataset, tmp_path,
     assert _results(tmp_path / "res")[0]["coverage"]["extra"] == ["dlgC_speaker1", "dlgC_speaker2"]
 
 
-def test_all_missing_partner_ground_truth_is_counted(dataset, tmp_path, capsys):
+def test_partner_metrics_average_over_clips_with_a_partner(dataset):
+    """With dlgB's and dlgC's speaker2 ground truth gone, P-FD/rPCC are the mean over dlgA's two agents
+    (the values the complete set gives them); every other value of dlgB/dlgC_speaker1 is unchanged."""
     gt, pred = dataset
+    full = {row["clip"]: row for row in score_paths(pred, gt).per_item}
     for clip in ("dlgB", "dlgC"):
         (gt / f"{clip}_speaker2.npz").unlink()
-    code, _, err = run(capsys, pred, "--gt", gt)
-    assert code == 2 and "dlgB_speaker2.npz" in err and "and 1 more ground-truth files are missing" in err
+    partial = score_paths(pred, gt)
+    assert [e["clip"] for e in partial.coverage["not_computable"]] == ["dlgB_speaker1", "dlgC_speaker1"]
+    for key in PARTNER_KEYS:
+        assert partial.metrics[key] == pytest.approx((full["dlgA_speaker1"][key] + full["dlgA_speaker2"][key]) / 2,
+                                                     rel=1e-12)
+    rows = {row["clip"]: row for row in partial.per_item}
+    for stem in ("dlgB_speaker1", "dlgC_speaker1"):
+        for key in KEYS:
+            if key not in PARTNER_KEYS:
+                assert rows[stem][key] == pytest.approx(full[stem][key], rel=1e-9, abs=1e-12), key
 
 
 def test_a_clip_whose_metrics_fail_is_excluded_not_fatal(monkeypatch):

@@ -1,8 +1,9 @@
-"""``dyadbench score``: score predictions on disk with one metric suite."""
+"""``dyadbench score``: score predictions on disk with one metric suite, into the result file ``eval`` writes."""
 
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 import click
@@ -13,20 +14,47 @@ from dyadbench.outputs import check_folder, kept_on_failure
 from dyadbench.registry import SUITES
 from dyadbench.scoring import policy
 
+PREDICTION_FORMATS = """\b
+PRED, per suite (a folder of .npy files, or one .npz whose keys are the same names):
+  dualtalk  <clip>_speaker1.npy / <clip>_speaker2.npy, float (T, 56) [exp 50 | jaw 3 | head
+            rotation 3] (what TIMAR and DualTalk write); the partner of _speaker1 is _speaker2.
+            GT: a DualTalk split folder of <clip>_speakerK.npz (or the root with --split).
+            A clip whose partner's .npz is missing (e.g. the released demo clips) is scored on
+            every metric but P-FD and rPCC, which are reported as not computable for it.
+  react     one (10, T, 25) array of reactions per sample, named by the sample's speaker path
+            (NoXI/<session>/Expert_video/3.npy, in sub-folders), or one .npz holding
+            'predictions' (N, 10, T, 25) in the split csv's mirrored order. GT: a REACT root.
+  l2l       <host>_<split>_<n:05d>_listener.npy, float (T, 56) as for dualtalk.
+            GT: a Learning2Listen root (or one host's folder); split test by default.
+  gaze      <clip>_subject.npy (or <clip>.npy), float (T, 7) in degrees.
+            GT: a gaze-head root or split folder.
+"""
 
-@click.command()
+
+def default_model_name(pred: Path) -> str:
+    """The name PRED's scores are ranked under when --model is not given: PRED's name without suffix, or its
+    parent's when PRED is an ``eval --out`` folder's ``predictions/``."""
+    pred = pred.resolve()
+    return pred.parent.name if pred.name == "predictions" else pred.stem
+
+
+@click.command(epilog=PREDICTION_FORMATS)
 @click.argument("pred", type=click.Path(exists=True, path_type=Path))
 @click.option("--gt", "gt", required=True, type=click.Path(exists=True, path_type=Path),
               help="Ground truth: a DualTalk split folder (dualtalk), a REACT root (react), an L2L root "
-                   "(l2l) or a gaze-head session folder (gaze).")
+                   "(l2l) or a gaze-head root or session folder (gaze).")
 @click.option("--suite", default="dualtalk", show_default=True, type=click.Choice(SUITES.names()),
               help="Metric suite. dualtalk = DualTalk/TIMAR tables; react = REACT challenge; "
                    "l2l = Learning2Listen line; gaze = StyGazeTalk gaze-head suite.")
 @click.option("--split", default=None,
               help="Split name where the ground truth root holds several (dualtalk: test/ood sub-folder "
-                   "of the DualTalk root; react: val/test; l2l: test).")
+                   "of the DualTalk root; react: val/test; l2l: test; gaze: a split folder).")
+@click.option("--model", "model", default=None,
+              help="Name of the model that made PRED: the row it is ranked under by `dyadbench leaderboard` "
+                   "(nothing is run). Default: PRED's name (its parent's for an eval folder's predictions/).")
 @click.option("--out", "out", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Write DIR/results.json and DIR/per_clip.csv (atomically).")
+              help="Write DIR/result.json (the typed result eval writes, protocol 'external predictions', "
+                   "ready for `dyadbench leaderboard DIR`) and DIR/per_clip.csv, atomically.")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
               help="Worker processes for per-clip metrics.")
 @click.option("--strict", is_flag=True,
@@ -34,28 +62,31 @@ from dyadbench.scoring import policy
                    "few frames). Predictions without ground truth are listed, never fatal.")
 @click.option("--seed", default=0, show_default=True, type=SEED,
               help="Seed for the randomised metrics (diversity index draws); recorded in the result.")
-def score(pred: Path, gt: Path, suite: str, split: str | None, out: Path | None, jobs: int,
+def score(pred: Path, gt: Path, suite: str, split: str | None, model: str | None, out: Path | None, jobs: int,
           strict: bool, seed: int) -> None:
-    """Score PRED against ground truth with the metrics of the published scripts.
+    """Score PRED against ground truth GT with the metrics of the published scripts.
 
-    \b
-    PRED (dualtalk suite): a folder of <clip>_speakerK.npy files, float (T, 56) ordered
-    [exp 50 | jaw 3 | head rotation 3] (what TIMAR and DualTalk write), or one .npz whose keys are
-    those stems. The partner of <clip>_speaker1 is <clip>_speaker2.
     By default the predictions present are scored and coverage is reported; --strict fails on gaps.
+    The accepted prediction formats of every suite are listed below.
     """
+    from dyadbench.results import external_result  # noqa: PLC0415  (keeps --help light)
+
     if out is not None:
         check_folder(out, f"--out {out}")
-    score_paths = SUITES.load(suite)
-    report = score_paths(pred, gt, split=split, jobs=jobs, seed=seed)
+    started = time.perf_counter()
+    report = SUITES.load(suite)(pred, gt, split=split, jobs=jobs, seed=seed)
     click.echo(f"[{suite}] {report.coverage_line()}")
     for note in report.notes:  # warnings (implausible values, named by file) go to stderr
         warning = note.startswith(policy.WARNING)
         click.echo(note if warning else f"note: {note}", err=warning)
     click.echo(report.table())
     if out is not None:
-        with kept_on_failure(out / "results.json", lambda: atomic.to_json(report.to_dict())):
-            json_path, csv_path = report.write(out)
+        result = external_result(report, model=model or default_model_name(pred), dataset=suite,
+                                 split=split or Path(gt).resolve().name, root=str(gt), predictions=str(pred),
+                                 wall_s=time.perf_counter() - started, seed=seed)
+        with kept_on_failure(out / "result.json", lambda: atomic.to_json(result.to_dict())):
+            json_path = result.write(out / "result.json")
+            csv_path = report.write_per_item(out / "per_clip.csv")
         click.echo(f"wrote {json_path} and {csv_path}")
     if strict and not report.complete:
         click.echo("error: --strict: predictions are missing or were excluded (see above)", err=True)

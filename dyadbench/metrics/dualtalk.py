@@ -51,7 +51,8 @@ class MetricInfo:
     ``higher_is_better`` is None for descriptive statistics (variance, diversity), which are judged
     by their closeness to the ground-truth value rather than ordered. ``scale`` is the publication
     factor per component (printed value = raw × scale); ``in_paper`` marks the columns of the
-    DualTalk/TIMAR tables.
+    DualTalk/TIMAR tables; ``needs_partner`` marks the metrics computed from the partner's ground truth
+    (not computable for a clip whose partner's ground truth is missing).
     """
 
     name: str
@@ -60,6 +61,7 @@ class MetricInfo:
     scale: dict[str, float]
     in_paper: bool
     description: str
+    needs_partner: bool = False
 
     def keys(self) -> list[str]:
         return [f"{self.name}_{c}" for c in FLAME_COMPONENTS]
@@ -75,7 +77,7 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("fd", "FD", False, _per_component(1.0, 1e3, 1e2), True,
                "Fréchet distance between Gaussians fitted to prediction and ground-truth frames"),
     MetricInfo("pfd", "P-FD", False, _per_component(1.0, 1e3, 1e2), True,
-               "Paired Fréchet distance on [partner, agent] features"),
+               "Paired Fréchet distance on [partner, agent] features", needs_partner=True),
     MetricInfo("mse", "MSE", False, _per_component(10.0, 1e3, 1e2), True,
                "Mean squared error against the ground truth"),
     MetricInfo("sid", "SID", True, _UNSCALED, True,
@@ -83,7 +85,7 @@ METRICS: tuple[MetricInfo, ...] = (
     MetricInfo("sid_gtfit", "SID-gtfit", True, _UNSCALED, False,
                "k-means occupancy entropy, fitted on the ground truth, prediction labelled (TIMAR 'sid')"),
     MetricInfo("rpcc", "rPCC", False, _per_component(1e2, 10.0, 10.0), True,
-               "Residual Pearson correlation with the partner"),
+               "Residual Pearson correlation with the partner", needs_partner=True),
     MetricInfo("sts", "STS", False, _UNSCALED, False,
                "Velocity difference to the ground truth (sqrt of summed squares / 0.1)"),
     MetricInfo("var_pred", "Var", None, _UNSCALED, False, "Mean per-dimension variance of the prediction"),
@@ -95,6 +97,9 @@ METRIC_INFO = {m.name: m for m in METRICS}
 
 #: Per-clip result keys in their canonical order (the columns of ``per_clip.csv``).
 KEYS: tuple[str, ...] = tuple(k for m in METRICS for k in m.keys())
+
+#: Per-clip keys computed from the partner's ground truth (P-FD, rPCC): NaN when it is missing.
+PARTNER_KEYS: tuple[str, ...] = tuple(k for m in METRICS if m.needs_partner for k in m.keys())
 
 #: Metric names in the column order of the DualTalk/TIMAR tables, then dyadbench's extra columns.
 PAPER_ORDER: tuple[str, ...] = (tuple(m.name for m in METRICS if m.in_paper)
@@ -227,35 +232,41 @@ def truncate_to_shortest(*arrays: np.ndarray) -> tuple[np.ndarray, ...]:
     return tuple(a[:n] for a in arrays)
 
 
-def clip_metrics(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray, *, seed: int) -> dict[str, float]:
+def clip_metrics(pred: np.ndarray, gt: np.ndarray, partner: np.ndarray | None, *,
+                 seed: int) -> dict[str, float]:
     """Every metric of the suite for one predicted agent: a dict keyed exactly :data:`KEYS`.
 
     ``pred``, ``gt`` and ``partner`` are (T, 56) [exp | jaw | pose]; they are truncated to the shortest
-    length first. ``seed`` seeds the diversity draws: component number i (exp 0, jaw 1, pose 2) uses
+    length first. ``partner=None`` (its ground truth is missing): the partner-based keys
+    (:data:`PARTNER_KEYS`, P-FD and rPCC) are NaN, every other key is computed as usual. ``seed`` seeds the diversity draws: component number i (exp 0, jaw 1, pose 2) uses
     ``numpy.random.default_rng([seed, i])`` for the prediction and a second, identically seeded
     generator for the ground truth, so both are measured on the same frame pairs. The scorer passes
     ``derive_seed(run_seed, stem)``.
     Raises :class:`InputError` for fewer than :data:`MIN_FRAMES` common frames (SID needs k frames).
     """
-    for name, array in (("prediction", pred), ("ground truth", gt), ("partner", partner)):
+    given = (("prediction", pred), ("ground truth", gt)) + ((("partner", partner),) if partner is not None else ())
+    for name, array in given:
         if array.ndim != 2 or array.shape[1] != FLAME56.dim:
             raise InputError(name, f"expected (T, {FLAME56.dim}), got shape {array.shape}")
-    pred, gt, partner = truncate_to_shortest(*(np.asarray(x, dtype=np.float64) for x in (pred, gt, partner)))
+    arrays = truncate_to_shortest(*(np.asarray(x, dtype=np.float64) for _, x in given))
+    pred, gt = arrays[:2]
+    partner = arrays[2] if partner is not None else None
     if pred.shape[0] < MIN_FRAMES:
         raise InputError(None, f"only {pred.shape[0]} common frames; the suite needs at least {MIN_FRAMES}")
     values: dict[str, dict[str, float]] = {m.name: {} for m in METRICS}
     for i, c in enumerate(FLAME_COMPONENTS):
-        p, g, a = (FLAME56.component(x, c) for x in (pred, gt, partner))
+        p, g = (FLAME56.component(x, c) for x in (pred, gt))
+        a = FLAME56.component(partner, c) if partner is not None else None
         k = SID_K[c]
         values["fd"][c] = fd(p, g)
-        values["pfd"][c] = pfd(p, g, a)
+        values["pfd"][c] = pfd(p, g, a) if a is not None else float("nan")
         values["mse"][c] = mse(p, g)
         with warnings.catch_warnings():
             # Fewer distinct frames than clusters (e.g. a constant prediction) is valid input here.
             warnings.filterwarnings("ignore", message="Number of distinct clusters")
             values["sid"][c] = sid(p, g, k)
             values["sid_gtfit"][c] = sid_gtfit(p, g, k)
-        values["rpcc"][c] = rpcc(p, g, a)
+        values["rpcc"][c] = rpcc(p, g, a) if a is not None else float("nan")
         values["sts"][c] = sts(p, g)
         values["var_pred"][c] = variance(p)
         values["var_gt"][c] = variance(g)

@@ -10,7 +10,11 @@ with the bad-input policy of every suite (:mod:`dyadbench.scoring.policy`), trun
 length (counted), and scored with :func:`dyadbench.metrics.dualtalk.clip_metrics` seeded by
 ``derive_seed(seed, stem)``. Predictions with NaN/inf values or fewer than
 :data:`~dyadbench.metrics.dualtalk.MIN_FRAMES` common frames are excluded and listed with the reason;
-predictions without ground truth are listed as extra. Aggregation is the plain mean over clips; every
+predictions without ground truth are listed as extra. A prediction whose partner's ground truth is missing
+(the released DualTalk demo clips each ship one participant's ``.npz``) is scored on every metric that does
+not need the partner; its partner-based keys (P-FD, rPCC:
+:data:`~dyadbench.metrics.dualtalk.PARTNER_KEYS`) are NaN, listed under ``coverage["not_computable"]``
+with the reason and left out of those keys' means. Aggregation is the plain mean over clips; every
 column's standard error and bootstrap CI resample dialogues (both speakers of a clip together,
 :mod:`dyadbench.uncertainty`).
 """
@@ -62,7 +66,8 @@ class _Job:
     seed: int
     pred: np.ndarray | PredictionFile
     gt: np.ndarray | Path
-    partner: np.ndarray | Path
+    partner: np.ndarray | Path | None  # None: the partner's ground truth is missing
+    partner_missing: str = ""  # why the partner's ground truth is missing (when partner is None)
 
 
 @dataclass
@@ -93,10 +98,15 @@ def _score_job(job: _Job) -> _Outcome:
     raised there and reaches the caller unchanged."""
     pred, pred_name = _load_prediction(job)
     gt, gt_name = _load_ground_truth(job.gt, f"ground truth of {job.stem}")
-    partner, partner_name = _load_ground_truth(job.partner, f"partner ground truth of {job.stem}")
-    outcome = _Outcome(job.stem, frames={"pred": pred.shape[0], "gt": gt.shape[0], "partner": partner.shape[0]})
+    outcome = _Outcome(job.stem, frames={"pred": pred.shape[0], "gt": gt.shape[0]})
+    scored = [(gt, gt_name)]
+    partner = None
+    if job.partner is not None:
+        partner, partner_name = _load_ground_truth(job.partner, f"partner ground truth of {job.stem}")
+        outcome.frames["partner"] = partner.shape[0]
+        scored.append((partner, partner_name))
     outcome.excluded = policy.exclusion(pred, pred_name)
-    scored = [(gt, gt_name), (partner, partner_name)] + ([(pred, pred_name)] if outcome.excluded is None else [])
+    scored += [(pred, pred_name)] if outcome.excluded is None else []
     outcome.warnings = [policy.magnitude_warning(a, name, FLAME56) for a, name in scored]
     common = min(outcome.frames.values())
     if outcome.excluded is None and common < suite.MIN_FRAMES:
@@ -115,16 +125,41 @@ def columns() -> list[ColumnSpec]:
     return list(suite.COLUMNS.columns)
 
 
-def _aggregate(rows: list[dict]) -> tuple[dict[str, float], dict[str, list[str]]]:
-    """Mean over clips of each key, leaving out (and listing) clips where the value is NaN."""
+def _aggregate(rows: list[dict], without_partner: set[str]) -> tuple[dict[str, float], dict[str, list[str]]]:
+    """Mean over clips of each key, leaving out clips where the value is NaN; those are listed as undefined,
+    except the partner-based keys of clips ``without_partner`` (listed as not computable instead)."""
     means, undefined = {}, {}
     for key in suite.KEYS:
         values = np.array([row[key] for row in rows], dtype=np.float64)
         defined = np.isfinite(values)
         means[key] = float(values[defined].mean()) if defined.any() else math.nan
-        if not defined.all():
-            undefined[key] = [row["clip"] for row, ok in zip(rows, defined) if not ok]
+        skipped = without_partner if key in suite.PARTNER_KEYS else set()
+        clips = [row["clip"] for row, ok in zip(rows, defined) if not ok and row["clip"] not in skipped]
+        if clips:
+            undefined[key] = clips
     return means, undefined
+
+
+PARTNER_HEADERS = ", ".join(m.header for m in suite.METRICS if m.needs_partner)
+
+
+def _not_computable(jobs_list: list[_Job], scored: set[str]) -> list[dict]:
+    """``coverage["not_computable"]``: each scored clip whose partner's ground truth is missing, the keys it
+    lacks and why."""
+    return [{"clip": job.stem, "metrics": list(suite.PARTNER_KEYS),
+             "reason": job.partner_missing}
+            for job in jobs_list if job.partner is None and job.stem in scored]
+
+
+def _not_computable_notes(entries: list[dict], n_scored: int) -> list[str]:
+    if not entries:
+        return []
+    shown = ", ".join(e["clip"] for e in entries[:3]) + (", …" if len(entries) > 3 else "")
+    means = ("not computable for any scored clip (NaN)" if len(entries) == n_scored
+             else "means over the other clips")
+    return [f"{PARTNER_HEADERS} not computable for {len(entries)} of {n_scored} clips: the partner's ground "
+            f"truth is missing ({shown}; listed under coverage.not_computable); every other metric is scored; "
+            f"{PARTNER_HEADERS}: {means}"]
 
 
 def _undefined_notes(undefined: dict[str, list[str]], n_scored: int) -> list[str]:
@@ -151,11 +186,12 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
             rows.append({"clip": outcome.stem, **outcome.metrics})
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
-    metrics, undefined = _aggregate(rows)
+    not_computable = _not_computable(jobs_list, {row["clip"] for row in rows})
+    metrics, undefined = _aggregate(rows, {e["clip"] for e in not_computable})
     spread, method = uncertainty.estimate(SUITE, rows, list(suite.KEYS), seed=seed)
     present = {job.stem for job in jobs_list}
     notes = (policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
-             + _undefined_notes(undefined, len(rows)))
+             + _not_computable_notes(not_computable, len(rows)) + _undefined_notes(undefined, len(rows)))
     if truncated:
         notes.append(f"{len(truncated)} clip(s) truncated to the shortest of prediction, ground truth and "
                      f"partner lengths (listed under coverage.truncated)")
@@ -166,7 +202,7 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
         excluded=excluded,
         coverage={"expected": len(expected), "scored": len(rows),
                   "missing": [s for s in expected if s not in present], "extra": extra,
-                  "truncated": truncated, "undefined": undefined},
+                  "truncated": truncated, "undefined": undefined, "not_computable": not_computable},
         config=_config(seed, jobs, inputs),
         notes=notes,
         columns=columns(),
@@ -185,7 +221,7 @@ def _config(seed: int, jobs: int, inputs: dict) -> dict:
         "sid_k": dict(suite.SID_K),
         "kmeans": 'sklearn.cluster.KMeans(n_clusters=k, random_state=0, n_init="auto")',
         "min_frames": suite.MIN_FRAMES,
-        "truncation": "each clip cut to the shortest of prediction, ground truth and partner",
+        "truncation": "each clip cut to the shortest of prediction, ground truth and partner (when present)",
         "aggregation": "plain mean over clips (a clip whose value is undefined is left out of that "
                        "key's mean and listed under coverage.undefined)",
         "higher_is_better": dict(suite.HIGHER_IS_BETTER),
@@ -198,8 +234,10 @@ def _config(seed: int, jobs: int, inputs: dict) -> dict:
 def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> ScoreReport:
     """Score in-memory predictions: each item's ``pred``, ``gt`` and ``partner`` are (T, 56).
 
-    A missing partner or a wrong shape raises :class:`InputError` naming the item; NaN/inf
-    predictions are excluded and listed; length mismatches are truncated and counted.
+    ``partner=None`` (its ground truth is missing): the partner-based metrics of that item are not
+    computable (listed under ``coverage["not_computable"]``), the others are scored. A wrong shape raises
+    :class:`InputError` naming the item; NaN/inf predictions are excluded and listed; length mismatches
+    are truncated and counted.
     """
     if not items:
         raise InputError(None, "no items to score")
@@ -207,11 +245,8 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> Sco
     duplicated = sorted({s for s in stems if stems.count(s) > 1})
     if duplicated:
         raise InputError(None, f"duplicate item stems: {', '.join(duplicated)}")
-    for item in items:
-        if item.partner is None:
-            raise InputError(item.stem, "the DualTalk suite needs the partner's ground truth (partner=None)")
-    jobs_list = [_Job(item.stem, derive_seed(seed, item.stem), item.pred, item.gt, item.partner)
-                 for item in items]
+    jobs_list = [_Job(item.stem, derive_seed(seed, item.stem), item.pred, item.gt, item.partner,
+                      "" if item.partner is not None else "no partner ground truth given (partner=None)") for item in items]
     return _run(jobs_list, jobs=jobs, seed=seed, expected=stems, inputs={"pred": "in-memory", "gt": "in-memory"},
                 extra=[])
 
@@ -240,27 +275,25 @@ def score_paths(pred: str | Path, gt: str | Path, *, split: str | None = None, j
     """Score a prediction folder (``<clip>_speakerK.npy``) or ``.npz`` against a DualTalk split folder.
 
     ``gt`` is the split folder itself, or the DualTalk root when ``split`` names its sub-folder.
-    A prediction without its own ground truth is extra (listed, not scored); a scored prediction also
-    needs its partner's ground truth (``_speaker1`` <-> ``_speaker2``), and a missing one raises
-    :class:`InputError` naming the file. Coverage is reported against every agent with ground truth in
-    the folder.
+    A prediction without its own ground truth is extra (listed, not scored). The partner-based metrics
+    also need the partner's ground truth (``_speaker1`` <-> ``_speaker2``); where that file is missing
+    (as in the released DualTalk demo clips) they are reported as not computable for that clip, naming
+    the file, and every other metric is scored. Coverage is reported against every agent with ground
+    truth in the folder.
     """
     gt_dir = Path(gt) / split if split else Path(gt)
     expected = ground_truth_stems(gt_dir)
     predictions = open_predictions(pred)
     known = set(expected)
     extra = [stem for stem in predictions if stem not in known]
-    jobs_list, absent = [], []
+    jobs_list = []
     for stem, prediction in predictions.items():
         if stem not in known:
             continue
         partner = gt_dir / f"{partner_stem(stem, prediction.name)}.npz"
-        if partner.name[: -len(".npz")] not in known:
-            absent.append((partner, prediction.name))
-        jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, gt_dir / f"{stem}.npz", partner))
-    if absent:
-        path, name = absent[0]
-        more = f" (and {len(absent) - 1} more ground-truth files are missing)" if len(absent) > 1 else ""
-        raise InputError(path, f"partner ground truth of prediction {name} not found{more}")
+        present = partner.name[: -len(".npz")] in known
+        jobs_list.append(_Job(stem, derive_seed(seed, stem), prediction, gt_dir / f"{stem}.npz",
+                              partner if present else None,
+                              "" if present else f"partner ground truth {partner} not found"))
     return _run(jobs_list, jobs=jobs, seed=seed, expected=expected,
                 inputs={"pred": str(pred), "gt": str(gt_dir)}, extra=extra)

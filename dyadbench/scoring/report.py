@@ -1,7 +1,8 @@
 """The result of scoring one set of predictions with one metric suite, and how it is written.
 
 Every suite's ``score_paths(...)`` returns a :class:`ScoreReport`; ``dyadbench score`` prints its table
-and writes ``results.json`` and ``per_clip.csv`` atomically. Raw values are always kept beside the
+and writes it as a typed result (``result.json``, :func:`dyadbench.results.external_result`) and
+``per_clip.csv``, atomically. Raw values are always kept beside the
 publication-scaled ones.
 """
 
@@ -61,7 +62,9 @@ class ScoreReport:
       suite's one declaration (:func:`dyadbench.metrics.columns.declared`; scale 1 for undeclared keys).
     - ``per_item``: one dict per scored item; first key ``clip`` (the prediction's stem / id).
     - ``excluded``: ``{"clip": ..., "reason": ...}`` for predictions present but not scored.
-    - ``coverage``: ``{"expected": n, "scored": n, "missing": [...], "extra": [...]}`` vs ground truth.
+    - ``coverage``: ``{"expected": n, "scored": n, "missing": [...], "extra": [...]}`` vs ground truth;
+      ``not_computable``: ``{"clip", "metrics", "reason"}`` for scored items whose listed metrics could
+      not be computed (e.g. no partner ground truth), when the suite reports any.
     - ``uncertainty`` / ``uncertainty_method``: each column's standard error and bootstrap CI over
       dialogues, computed when scoring (:func:`dyadbench.uncertainty.estimate`), and how.
     """
@@ -107,6 +110,11 @@ class ScoreReport:
         if self.excluded:
             line += f"; excluded {len(self.excluded)}: " + ", ".join(
                 f"{e['clip']} ({e['reason']})" for e in self.excluded[:5])
+        not_computable = self.coverage.get("not_computable") or []
+        if not_computable:
+            names = dict.fromkeys(k.rsplit("_", 1)[0] for e in not_computable for k in e["metrics"])
+            line += (f"; {len(not_computable)} of them without {', '.join(names)} (not computable, "
+                     f"see coverage.not_computable)")
         extra = self.coverage.get("extra") or []
         if extra:
             line += f"; {len(extra)} predictions without ground truth ignored"
@@ -146,14 +154,11 @@ class ScoreReport:
     def per_item_frame(self) -> pd.DataFrame:
         return pd.DataFrame(self.per_item)
 
-    def write(self, out_dir: str | Path) -> tuple[Path, Path]:
-        """Write ``results.json`` and ``per_clip.csv`` into ``out_dir`` (atomically)."""
-        out_dir = Path(out_dir)
-        json_path = atomic.write_json(out_dir / "results.json", self.to_dict())
+    def write_per_item(self, path: str | Path) -> Path:
+        """Write the per-item metrics as CSV (``per_clip.csv``), atomically."""
         buf = io.StringIO()
         self.per_item_frame().to_csv(buf, index=False, float_format="%.10g")
-        csv_path = atomic.write_text(out_dir / "per_clip.csv", buf.getvalue())
-        return json_path, csv_path
+        return atomic.write_text(path, buf.getvalue())
 
 
 def _fmt(value: float) -> str:
