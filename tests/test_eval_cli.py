@@ -48,7 +48,7 @@ def test_eval_then_score_gives_the_same_numbers(dualtalk_dir, tmp_path, model):
     assert pred.dtype == np.float32 and pred.ndim == 2 and pred.shape[1] == 56
     _run(["score", str(out / "predictions"), "--gt", str(dualtalk_dir / "test"), "--seed", "4",
           "--out", str(tmp_path / "scored")])
-    scored = json.loads((tmp_path / "scored" / "results.json").read_text())
+    scored = json.loads((tmp_path / "scored" / "result.json").read_text())
     assert set(scored["metrics"]) == set(result.metrics)
     for key, value in result.metrics.items():
         np.testing.assert_allclose(scored["metrics"][key], value, rtol=1e-12, atol=1e-15, err_msg=key)

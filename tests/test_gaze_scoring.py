@@ -142,7 +142,7 @@ def test_score_command_on_disk(tmp_path):
                                       "--out", str(out)])
     assert result.exit_code == 0, result.output
     assert "scored 2 of 3" in result.output and "SimScore" in result.output
-    saved = json.loads((out / "results.json").read_text())
+    saved = json.loads((out / "result.json").read_text())
     assert saved["metrics"]["sim_gt"] == 1.0 and saved["metrics"]["mae_all"] == 0.0
     assert saved["coverage"]["missing"] == [f"{sessions[2].clip_id}_subject"]
     assert saved["coverage"]["extra"] == ["unrelated_subject"]

@@ -242,7 +242,7 @@ def test_the_same_bad_input_has_the_same_outcome_in_every_suite(corpora, good_re
         assert line.startswith(f"error: {file}") and says in line
         assert _snapshot(out) == before  # nothing written over the previous good results
         return
-    results = json.loads((out / "results.json").read_text())
+    results = json.loads((out / "result.json").read_text())
     if outcome == "excluded":
         assert results["excluded"] == [{"clip": c.stem, "reason": results["excluded"][0]["reason"]}]
         assert says in results["excluded"][0]["reason"] and str(file) in results["excluded"][0]["reason"]

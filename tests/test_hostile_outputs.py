@@ -98,8 +98,8 @@ def test_a_smaller_rerun_leaves_only_its_own_files_and_score_scores_exactly_them
 
     code, text = dyadbench(capsys, "score", out / "predictions", "--gt", data_root / "test", "--out", tmp_path / "s")
     assert code == 0, text
-    scored = json.loads((tmp_path / "s" / "results.json").read_text())
-    assert scored["n_scored"] == 2 and "scored 2 of 12" in text  # 6 dialogues in the split, clip 0 predicted
+    scored = json.loads((tmp_path / "s" / "result.json").read_text())
+    assert scored["data"]["items"] == 2 and "scored 2 of 12" in text  # 6 dialogues in the split, clip 0 predicted
     rows = (tmp_path / "s" / "per_clip.csv").read_text().splitlines()[1:]
     assert [row.split(",")[0] for row in rows] == ["synth_test_00000_speaker1", "synth_test_00000_speaker2"]
 

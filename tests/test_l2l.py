@@ -195,7 +195,7 @@ def test_cli_end_to_end(tmp_path):
         np.save(preds / f"{stem}.npy", motion)
     result = runner.invoke(cli, ["score", str(preds), "--suite", "l2l", "--gt", str(root), "--out", str(tmp_path / "r")])
     assert result.exit_code == 0, result.output
-    saved = json.loads((tmp_path / "r" / "results.json").read_text())
+    saved = json.loads((tmp_path / "r" / "result.json").read_text())
     assert saved["metrics"]["l2_exp"] == 0.0 and saved["metrics"]["rpcc_pose"] == 0.0
     assert saved["coverage"]["missing"] == [stems[-1]]
     np.savez(tmp_path / "wrong.npz", other=listener[0])

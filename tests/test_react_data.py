@@ -145,5 +145,5 @@ def test_cli_end_to_end(tmp_path):
     result = runner.invoke(cli, ["score", str(tmp_path / "meanfr.npz"), "--suite", "react", "--gt", str(root),
                                  "--split", "val", "--out", str(tmp_path / "res")])
     assert result.exit_code == 0, result.output
-    metrics = json.loads((tmp_path / "res" / "results.json").read_text())["metrics"]
+    metrics = json.loads((tmp_path / "res" / "result.json").read_text())["metrics"]
     assert metrics["FRCorr"] == 0.0 and metrics["FRSyn"] == 49.0 and metrics["FRDiv"] == 0.0

@@ -112,7 +112,7 @@ def test_train_eval_and_score_on_the_l2l_layout(root, tmp_path):
     res = runner.invoke(cli, ["score", str(run / "predictions"), "--suite", "l2l", "--gt", str(root),
                               "--out", str(tmp_path / "scored")])
     assert res.exit_code == 0, res.output
-    rescored = json.loads((tmp_path / "scored" / "results.json").read_text())
+    rescored = json.loads((tmp_path / "scored" / "result.json").read_text())
     assert rescored["metrics"] == result["metrics"]
     res = runner.invoke(cli, ["leaderboard", str(run), "--out", str(tmp_path / "lb")])
     assert res.exit_code == 0, res.output
