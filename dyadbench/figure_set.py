@@ -20,8 +20,8 @@ from typing import Callable, Iterable
 
 import pandas as pd
 
-from dyadbench.figure_style import FORMATS
 from dyadbench.errors import ConfigError, InputError
+from dyadbench.figure_style import FORMATS
 from dyadbench.leaderboard import long_table
 from dyadbench.leaderboard_uncertainty import with_uncertainty
 from dyadbench.metrics.columns import declared
@@ -82,16 +82,22 @@ def figure_files(stems: Iterable[str], formats: Iterable[str]) -> list[str]:
     return [f"{stem}.{fmt}" for stem in stems for fmt in formats]
 
 
+def check_formats(formats: Iterable[str]) -> list[str]:
+    """``formats`` as a list; ConfigError for none or for one that is not pdf, svg or png."""
+    formats = list(formats)
+    unknown = [f for f in formats if f".{f}" not in FORMATS]
+    if unknown or not formats:
+        raise ConfigError(f"unknown figure format(s) {', '.join(unknown) or '(none given)'}; use "
+                          f"{', '.join(ext[1:] for ext in FORMATS)}")
+    return formats
+
+
 def write_figures(out: Path, builders: dict[str, Callable[[Path], Path]], formats: Iterable[str]
                   ) -> tuple[list[Path], list[Path]]:
     """Write every figure in every format into ``out`` and remove earlier builds' figures not in this one.
 
     Returns (written, removed)."""
-    formats = list(formats)
-    unknown = [f for f in formats if f".{f}" not in FORMATS]
-    if unknown:
-        raise ConfigError(f"unknown figure format(s) {', '.join(unknown)}; use "
-                          f"{', '.join(ext[1:] for ext in FORMATS)}")
+    formats = check_formats(formats)
     out.mkdir(parents=True, exist_ok=True)
     written = [builders[stem](out / name) for stem in builders
                for name in figure_files([stem], formats)]

@@ -14,10 +14,12 @@
   **and** prediction set, and ``items`` (predictions scored; empty for published rows). Rows scored on
   different predictions (e.g. 40 items of the first 20 clips beside 1066 items) are never ranked
   against each other. Oracle and flagged rows are kept, marked and never ranked; a suite without a
-  declaration is not ranked.
-- :func:`latex_table`: the wide table as a LaTeX ``tabular`` (best ranked value per setting and prediction
-  set in bold; a setting with several prediction sets shows each under its own line; oracle rows marked †,
-  flagged rows ‡).
+  declaration is not ranked. The ground truth's own values of a suite's reference keys (e.g. L2L
+  ``var_gt_exp``, declared with ``reference="var_exp"``) form an unranked ``ground truth`` row of each
+  setting and prediction set, under the columns they refer to.
+- :func:`latex_table`: the wide table as a booktabs LaTeX ``tabular`` (best ranked value per setting and
+  prediction set in bold, never in oracle, flagged or ground-truth rows; a setting with several
+  prediction sets shows each under its own line; oracle rows marked †, flagged rows ‡).
 - :func:`table_texts` / :func:`write_tables`: one build's tables, written as a set into a folder that
   afterwards holds exactly them (tables of suites no longer present are removed).
 

@@ -144,7 +144,8 @@ def plot_context_curves(long: pd.DataFrame, metrics: list[str], out: str | Path,
                 for label, line in sorted(rows.groupby("label"), key=lambda item: _order(item[0])):
                     line = line.sort_values("context")
                     oracle = bool(line["oracle"].iloc[0])
-                    ax.plot(line["context"].astype(int), line["scaled"], label=label + (" (oracle)" if oracle and label != "oracle" else ""),
+                    name = label + (" (oracle)" if oracle and label != "oracle" else "")
+                    ax.plot(line["context"].astype(int), line["scaled"], label=name,
                             **style.model_style(label, oracle).kwargs())
                 ax.set_xticks(ticks)
                 ax.set_xlim(ticks[0] - 0.5, ticks[-1] + 0.5)
@@ -166,7 +167,8 @@ def _order(label: str) -> tuple[int, str]:
 def plot_bars(long: pd.DataFrame, metrics: list[str], out: str | Path, dataset: str | None = None,
               context: int | None = None) -> Path:
     """One bar per model and variant for each metric (rows) and split (columns) at one context (default:
-    the largest the dataset's results hold), best first (the oracle last), variants hatched, with the recorded 95 % CI as error bars; write
+    the largest the dataset's results hold), best first (the oracle last), variants hatched, with the
+    recorded 95 % CI as error bars; write
     ``out`` (PDF, SVG or PNG by extension). ``long`` may carry ``ci_low`` / ``ci_high``
     (:func:`dyadbench.leaderboard_uncertainty.with_uncertainty`). A bar scored on other predictions than
     the panel's most common set is labelled with its number of items; the oracle is marked †."""

@@ -144,10 +144,10 @@ def all_figures(results: tuple[Path, ...], robustness: Path | None, formats: str
     """The paper's figure set from RESULTS (dyadbench.figure_set): per dataset context_<dataset> (when a
     split holds two or more contexts) and bars_<dataset>; robustness with --robustness. Figures of earlier
     builds in OUT that are not part of this one are removed, so OUT holds exactly this set."""
-    from dyadbench.figure_set import figure_builders, write_figures  # noqa: PLC0415
+    from dyadbench.figure_set import check_formats, figure_builders, write_figures  # noqa: PLC0415
 
+    kinds = check_formats(f.strip() for f in formats.split(",") if f.strip())
     check_folder(out, f"--out {out}")
-    kinds = [f.strip() for f in formats.split(",") if f.strip()]
     written, removed = write_figures(out, figure_builders(results, robustness), kinds)
     for path in written:
         click.echo(f"wrote {path}")

@@ -93,7 +93,8 @@ def _columns() -> SuiteColumns:
     printed = table2 + [
         ("saccade_ratio", "saccade"), ("fix_ratio", "fixation"), ("comp_score", "CompScore"), ("sim_gt", "SimScore")]
     extras = [("bas_delta_head", "Head dBAS"), ("sim_gt_seq", "Sim_seq")]
-    references = [("gt_saccade_ratio", "GT saccade"), ("gt_fix_ratio", "GT fixation"), ("gt_comp_score", "GT CompScore")]
+    references = [("gt_saccade_ratio", "GT saccade"), ("gt_fix_ratio", "GT fixation"),
+                  ("gt_comp_score", "GT CompScore")]
     others = ([f"{m}_{g}" for m in ("vel_abs", "mee_frame") for g in GROUPS]
               + [f"{prefix}{v}_{g}" for prefix in ("", "gt_") for v in BAS_VARIANTS for g in GROUPS])
     seen = {key for key, _ in printed + extras + references}
