@@ -123,9 +123,11 @@ MODELS.add("gaze-static", "baselines.gaze:build_static", "Gaze straight ahead, h
 MODELS.add("gaze-headcopy", "baselines.gaze:build_headcopy",
            "Eyes follow the ground-truth head direction (ORACLE head; gaze-head; never ranked)", ("oracle", "gaze"))
 MODELS.add("timar", "models.timar.registry:build_timar",
-           "TIMAR: turn-level interleaved masked autoregression with a diffusion head", ("reference",))
+           "TIMAR: turn-level interleaved masked autoregression with a diffusion head",
+           ("reference", "guidance"))
 MODELS.add("timar-stream", "models.timar.registry:build_timar_stream",
-           "TIMAR streaming-native variant: per-turn sliding band, exact KV cache", ("reference",))
+           "TIMAR streaming-native variant: per-turn sliding band, exact KV cache",
+           ("reference", "guidance"))
 MODELS.add("dualtalk", "models.dualtalk.registry:build_dualtalk",
            "DualTalk under progressive-context streaming (window of min(t, n) + 1 turns, current turn kept)",
            ("reference",))

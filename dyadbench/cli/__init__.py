@@ -7,6 +7,7 @@ and ``dyadbench models`` stay fast and never import torch.
 from __future__ import annotations
 
 import sys
+import warnings
 
 import click
 
@@ -48,19 +49,48 @@ def cli() -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: user-facing errors are printed as one line, without a traceback."""
-    try:
-        cli.main(args=argv, prog_name="dyadbench", standalone_mode=False)
-    except click.exceptions.Abort:
-        click.echo("Aborted.", err=True)
-        sys.exit(130)
-    except click.ClickException as exc:
-        exc.show()
-        sys.exit(exc.exit_code)
-    except DyadbenchError as exc:
-        click.echo(f"error: {exc}", err=True)
-        sys.exit(2)
-    except SystemExit:
-        raise
-    except click.exceptions.Exit as exc:
-        sys.exit(exc.exit_code)
+    """Entry point: user-facing errors are printed as one line of their own (after any progress bar), without
+    a traceback; warnings of this process are collected and printed as one summary line per kind at the end
+    (:func:`warning_summary`), e.g. the LinAlgWarnings of constant predictions."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", RuntimeWarning)  # counted, not shown one by one (LinAlgWarning is one)
+        warnings.simplefilter("always", UserWarning)
+        try:
+            cli.main(args=argv, prog_name="dyadbench", standalone_mode=False)
+            code, error = 0, None
+        except click.exceptions.Abort:
+            code, error = 130, "Aborted."
+        except click.ClickException as exc:
+            code, error = exc.exit_code, exc
+        except DyadbenchError as exc:
+            code, error = 2, f"error: {exc}"
+        except click.exceptions.Exit as exc:
+            code, error = exc.exit_code, None
+        except SystemExit as exc:  # e.g. score --strict
+            code, error = exc.code, None
+        finally:
+            _end_progress_bars()
+            for line in warning_summary(caught):
+                click.echo(line, err=True)
+    if isinstance(error, click.ClickException):
+        error.show()
+    elif error is not None:
+        click.echo(error, err=True)
+    if code:
+        sys.exit(code)
+
+
+def warning_summary(caught: list[warnings.WarningMessage]) -> list[str]:
+    """One line per kind of warning (category and message): how many times it was raised and where first."""
+    kinds: dict[tuple[str, str], list[warnings.WarningMessage]] = {}
+    for w in caught:
+        kinds.setdefault((w.category.__name__, str(w.message)), []).append(w)
+    return [f"warning: {name} x{len(ws)}: {message} (first at {ws[0].filename}:{ws[0].lineno})"
+            for (name, message), ws in kinds.items()]
+
+
+def _end_progress_bars() -> None:
+    """Close the progress bars still open (an error stopped their loop), so what follows starts a new line."""
+    tqdm = sys.modules.get("tqdm")
+    for bar in list(getattr(getattr(tqdm, "tqdm", None), "_instances", ()) or ()):
+        bar.close()

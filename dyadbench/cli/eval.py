@@ -12,8 +12,8 @@ from typing import Callable
 import click
 
 from dyadbench import atomic
-from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec, torch_device
-from dyadbench.cli.splits import ON_DISK, open_splits
+from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec, check_cfg_scale, torch_device
+from dyadbench.cli.splits import ON_DISK, open_splits, split_help
 from dyadbench.datasets.base import ClipSource, InMemorySource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
@@ -75,7 +75,8 @@ def protocol_options(f: Callable) -> Callable:
                      help="Run seed: per-stream model seeds derive from (seed, clip, agent); also seeds the "
                           "randomised metrics. Recorded in the result."),
         click.option("--cfg-scale", default=1.0, show_default=True, type=NON_NEGATIVE,
-                     help="Classifier-free guidance scale for models that support it (1 = off)."),
+                     help="Classifier-free guidance scale (1 = off); only for models tagged 'guidance' in "
+                          "`dyadbench models` (timar, timar-stream), refused for the others."),
         click.option("--weights", default=None, type=click.Path(exists=True, dir_okay=False, path_type=Path),
                      help="Checkpoint for models with weights (default: the model's shipped checkpoint). "
                           "timar also takes the released TIMAR checkpoint (converted in memory; "
@@ -231,8 +232,8 @@ def is_predictions_folder(folder: Path) -> bool:
 @click.command("eval")
 @click.option("--model", "model", required=True, help=f"Registered model ({', '.join(MODELS.names())}).")
 @click.option("--split", default=None,
-              help="Split of the --data root to evaluate: train, test or ood [default: test; for a single "
-                   "split folder, that folder, recorded under its name].")
+              help=split_help("Split of the dataset to evaluate [default: test; for a single split folder given as "
+                              "--data, that folder, recorded under its name]."))
 @click.option("--context", "-n", default=7, show_default=True, type=click.IntRange(min=0),
               help="History turns n given with the current turn (0 = none; TIMAR's main results use 7).")
 @protocol_options
@@ -264,6 +265,7 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
       dyadbench eval --model mean-frame --split test --context 7 --clips 20
     """
     MODELS.get(model)
+    check_cfg_scale([model], cfg_scale)
     config = ProtocolConfig(turn_seconds=turn_seconds, context=context, tail=tail, history_agent=history_agent,
                             seed=seed, speech_norm=speech_norm, perturbations=perturb, noise_scale=noise_scale)
     name = resolve_dataset(data, dataset)

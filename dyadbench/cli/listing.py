@@ -20,7 +20,9 @@ def _table(registry: Registry, with_tags: bool) -> str:
 @click.command()
 @click.option("--targets", is_flag=True, help="Also show the module:attribute each name is loaded from.")
 def models(targets: bool) -> None:
-    """List registered models and baselines (tags: baseline, reference, oracle, gaze).
+    """List registered models and baselines (tags: baseline, reference, oracle, gaze, guidance).
+
+    Models tagged 'guidance' have classifier-free guidance: only they take eval/sweep --cfg-scale.
 
     Models tagged 'oracle' read the agent's ground truth: they check the pipeline and are never ranked.
     """

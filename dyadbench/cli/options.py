@@ -8,7 +8,7 @@ range. ``click.FloatRange`` alone lets ``nan`` (and ``inf`` when unbounded) thro
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Callable, Iterable
 
 import click
 
@@ -101,3 +101,37 @@ def torch_device(ctx: click.Context | None, param: click.Parameter | None, value
     elif device.type != "cpu":
         raise click.BadParameter(f"{value!r}: models run on cpu or cuda")
     return value
+
+
+def deprecated_alias(alias: str, option: str, dest: str, **kwargs: Any) -> Callable:
+    """A hidden option ``alias`` that still works as ``option`` (its value goes to the parameter ``dest``),
+    with a note on stderr naming the spelling to use. Older spellings stay valid this way, so documented
+    commands and the commands recorded in checkpoints run unchanged, while ``--help`` shows one name per
+    concept (data root ``--data``, batch size ``--batch-size``)."""
+
+    def forward(ctx: click.Context, param: click.Parameter, value: Any) -> None:
+        if value is not None:
+            click.echo(f"note: {alias} is deprecated, use {option} (same meaning)", err=True)
+            ctx.params[dest] = value
+
+    return click.option(alias, f"{dest}_alias", default=None, hidden=True, expose_value=False, callback=forward,
+                        **kwargs)
+
+
+#: Registry tag (:data:`dyadbench.registry.MODELS`) of the models with classifier-free guidance.
+GUIDANCE = "guidance"
+
+
+def check_cfg_scale(models: Iterable[str], cfg_scale: float) -> None:
+    """Refuse ``--cfg-scale`` other than 1 (off) for a registered model that does not declare guidance
+    (registry tag :data:`GUIDANCE`): it would ignore the scale and record a variant that does not exist."""
+    from dyadbench.registry import MODELS  # noqa: PLC0415
+
+    if cfg_scale == 1.0:
+        return
+    without = [m for m in models if m in MODELS and GUIDANCE not in MODELS.get(m).tags]
+    if without:
+        guided = ", ".join(e.name for e in MODELS.entries.values() if GUIDANCE in e.tags)
+        raise click.UsageError(f"--cfg-scale {cfg_scale:g}: {', '.join(without)} "
+                               f"{'has' if len(without) == 1 else 'have'} no classifier-free guidance; only "
+                               f"{guided} take --cfg-scale (leave it at 1 for the others)")

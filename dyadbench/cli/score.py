@@ -28,6 +28,8 @@ PRED, per suite (a folder of .npy files, or one .npz whose keys are the same nam
             GT: a Learning2Listen root (or one host's folder); split test by default.
   gaze      <clip>_subject.npy (or <clip>.npy), float (T, 7) in degrees.
             GT: a gaze-head root or split folder.
+  seamless  <participant file stem>.npy (V.._S.._I.._P..), float (T, 166) in the split's movement
+            layout (168 with gaze). GT: a Seamless Interaction root; --split test or <label>/test.
 """
 
 
@@ -42,7 +44,7 @@ def default_model_name(pred: Path) -> str:
 @click.argument("pred", type=click.Path(exists=True, path_type=Path))
 @click.option("--gt", "gt", required=True, type=click.Path(exists=True, path_type=Path),
               help="Ground truth: a DualTalk split folder (dualtalk), a REACT root (react), an L2L root "
-                   "(l2l) or a gaze-head root or session folder (gaze).")
+                   "(l2l), a gaze-head root or session folder (gaze) or a Seamless Interaction root (seamless).")
 @click.option("--suite", default="dualtalk", show_default=True, type=click.Choice(SUITES.names()),
               help="Metric suite. dualtalk = DualTalk/TIMAR tables; react = REACT challenge; "
                    "l2l = Learning2Listen line; gaze = StyGazeTalk gaze-head suite.")

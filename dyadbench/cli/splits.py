@@ -24,6 +24,22 @@ from dyadbench.registry import DATASETS
 
 #: Splits ``sweep`` runs by default (on a dataset root or the embedded corpus).
 SWEEP_SPLITS = ("test", "ood")
+#: The splits of every registered dataset (:data:`dyadbench.registry.DATASETS`), for ``--help`` without importing
+#: the adapters (a test checks them against each adapter's ``SPLITS``); the gaze layout's splits are the ones
+#: its ``splits.csv`` names.
+DATASET_SPLITS = {
+    "synthetic": "train, val, test, ood", "synthetic-v2": "train, val, test, ood",
+    "dualtalk": "train, test, ood", "l2l": "train, test", "react": "train, val, test",
+    "seamless": "train, dev, test", "seamless-gaze": "train, dev, test",
+    "gaze": "those its splits.csv names", "synthetic-gaze": "train, val, test, ood",
+}
+
+
+def split_help(what: str) -> str:
+    """``--split``/``--splits`` help: ``what``, then every dataset's splits."""
+    return f"{what} Splits: " + "; ".join(f"{name}: {splits}" for name, splits in DATASET_SPLITS.items()) + "."
+
+
 #: The adapter reading the files of an embedded corpus from a folder on disk (``--train DIR`` with it).
 ON_DISK = {"synthetic": "dualtalk", "synthetic-v2": "dualtalk", "synthetic-gaze": "gaze"}
 

@@ -29,8 +29,8 @@ from click.core import ParameterSource
 
 from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
                                 resolve_dataset, run_one, run_variant, save_result, summary, wav2vec_extra)
-from dyadbench.cli.options import IntList
-from dyadbench.cli.splits import sweep_splits
+from dyadbench.cli.options import IntList, check_cfg_scale
+from dyadbench.cli.splits import split_help, sweep_splits
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.outputs import check_cache, check_folder, owned_folder
 from dyadbench.protocol.config import ProtocolConfig
@@ -140,8 +140,8 @@ def _csv(value: str, what: str) -> list[str]:
               help="Comma-separated registered models, e.g. zero,mean-frame,oracle (see `dyadbench models`). "
                    "Required unless --stale.")
 @click.option("--splits", default=None,
-              help="Comma-separated splits [default: test,ood; for a single split folder as --data, that "
-                   "folder alone, under its name].")
+              help=split_help("Comma-separated splits [default: test,ood; for a single split folder as --data, "
+                              "that folder alone, under its name]."))
 @click.option("--contexts", "context_list", default="0,3,7", show_default=True, type=IntList(min=0),
               help="Comma-separated history lengths n (each >= 0).")
 @protocol_options
@@ -191,6 +191,7 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
     names = _csv(models, "models")
     for name in names:
         MODELS.get(name)
+    check_cfg_scale(names, cfg_scale)
     dataset_name = resolve_dataset(data, dataset)
     check_cache()
     check_folder(out, f"--out {out}")

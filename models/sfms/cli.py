@@ -15,7 +15,7 @@ import torch
 from tqdm import tqdm
 
 from dyadbench import atomic
-from dyadbench.cli.options import COUNT, SEED, real
+from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
@@ -79,8 +79,9 @@ def _common(f):
                      help="Override any config field (every spec decision is one), e.g. --set keyframes=10."),
         click.option("--dataset", default="synthetic", show_default=True,
                      help="Registered dataset to train on (`dyadbench datasets`)."),
-        click.option("--root", type=click.Path(path_type=Path), default=None,
+        click.option("--data", "root", type=click.Path(path_type=Path), default=None,
                      help="Dataset root (default: the dataset's own default, e.g. the embedded corpus cache)."),
+        deprecated_alias("--root", "--data", "root", type=click.Path(path_type=Path)),
         click.option("--clips", type=click.IntRange(min=2), default=None,
                      help="Use only the first N train clips (quick runs; at least 2: one is held out)."),
         click.option("--val-frac", type=real(0, 1, min_open=True, max_open=True), default=0.1, show_default=True,
@@ -88,7 +89,9 @@ def _common(f):
         click.option("--val-windows", type=COUNT, default=512, show_default=True,
                      help="Validation windows scored at each validation (best-checkpoint selection)."),
         click.option("--steps", type=COUNT, default=None, help="Training steps (default: the preset's)."),
-        click.option("--batch", type=COUNT, default=None, help="Windows per step (default: the preset's)."),
+        click.option("--batch-size", "batch", type=COUNT, default=None,
+                     help="Windows per step (default: the preset's)."),
+        deprecated_alias("--batch", "--batch-size", "batch", type=COUNT),
         click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of every random choice."),
         click.option("--threads", type=COUNT, default=1, show_default=True,
                      help="torch CPU threads (1 is fastest on a shared, busy CPU)."),

@@ -9,7 +9,7 @@ from typing import Callable
 
 import click
 
-from dyadbench.cli.options import SEED, real
+from dyadbench.cli.options import SEED, deprecated_alias, real
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
 from models.stygazetalk.config import CHECKPOINT_SELECTIONS
@@ -45,8 +45,9 @@ def _overrides(base, **values):
               help="Style-encoder preset: tiny-se64, tiny-se32, base-se64, base-se32.")
 @data_options("Split for early-stopping selection (validation NT-Xent) and the retrieval check.")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
-@click.option("--batch", type=click.IntRange(min=2), default=None,
+@click.option("--batch-size", "batch", type=click.IntRange(min=2), default=None,
               help="Override the preset's pairs per batch (anchors of one session stay >= 10 s apart).")
+@deprecated_alias("--batch", "--batch-size", "batch", type=click.IntRange(min=2))
 @click.option("--seed", type=SEED, default=None, help="Override the preset's seed (recorded in the checkpoint).")
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
@@ -100,7 +101,9 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
                    "into the generator checkpoint together with its motion statistics.")
 @data_options("Split for checkpoint selection (teacher-forced validation loss).")
 @click.option("--steps", type=click.IntRange(min=1), default=None, help="Override the preset's step count.")
-@click.option("--batch", type=click.IntRange(min=1), default=None, help="Override the preset's batch size.")
+@click.option("--batch-size", "batch", type=click.IntRange(min=1), default=None,
+              help="Override the preset's batch size.")
+@deprecated_alias("--batch", "--batch-size", "batch", type=click.IntRange(min=1))
 @click.option("--lam", type=real(0, 1), default=None,
               help="Override lambda in lambda*MSE + (1-lambda)*velocity MSE (D21).")
 @click.option("--rollout-prob", type=real(0, 1), default=None,
