@@ -131,7 +131,7 @@ def test_a_validation_fraction_that_leaves_no_training_clip_is_refused_before_tr
                                                                                       capsys):
     out = tmp_path / "tok.pt"
     with pytest.raises(SystemExit) as exc:
-        main(["train", "sfms-tokenizer", "--dataset", "dualtalk", "--root", str(two_clip_root), "--val-frac", "0.9",
+        main(["train", "sfms-tokenizer", "--dataset", "dualtalk", "--data", str(two_clip_root), "--val-frac", "0.9",
               "--out", str(out)])
     err = capsys.readouterr().err
     assert exc.value.code == 2
