@@ -30,7 +30,7 @@ from bench_sfms_keyframes import load_corpus  # noqa: E402
 from output import write_result  # noqa: E402  (benchmarks/output.py)
 from models.sfms.bundle import load_tokenizer  # noqa: E402
 from models.sfms.placement import interpolation_mse, optimal_placement_mse  # noqa: E402
-from models.sfms.registry import SHIPPED_WEIGHTS  # noqa: E402
+from models.sfms.registry import shipped  # noqa: E402
 from models.sfms.topk import static_mask  # noqa: E402
 
 RESULT = Path(__file__).parent / "results" / "sfms_placement.md"
@@ -79,7 +79,7 @@ def main(ks, oracle_windows, test_windows, clips, tokenizer_path, seed, out) -> 
         o = np.mean([optimal_placement_mse(w, k) for w in test[:oracle_windows]])
         oracle_rows.append(f"| {k} | {s:.4f} | {o:.4f} | {s / o:.2f} |")
         click.echo(oracle_rows[-1], err=True)
-    path = tokenizer_path or SHIPPED_WEIGHTS
+    path = tokenizer_path or shipped()
     tokenizer = load_tokenizer(path)
     if tokenizer.cfg.keyframe_mode != "dynamic":
         raise click.UsageError(f"{path}: keyframe_mode is {tokenizer.cfg.keyframe_mode!r}; the swap needs dynamic")

@@ -214,11 +214,12 @@ class Checker:
         """(model info, train split record) of ``run``'s model built with ``weights``, cached."""
         from dyadbench.protocol.runner import build_model  # noqa: PLC0415  (imports the scoring stack)
 
-        key = (run.model, run.layout, run.config.turn_seconds, run.config.seed, run.cfg_scale, weights, run.train)
+        key = (run.model, run.layout, run.config.turn_seconds, run.config.seed, run.cfg_scale, weights, run.train,
+               run.dataset)
         if key not in self._models:
             train = self.train_split(run)
             options = ModelOptions(weights=weights, seed=run.config.seed, cfg_scale=run.cfg_scale,
-                                   train_split=train,
+                                   train_split=train, dataset=run.dataset,
                                    extra={"layout": run.layout, "turn_seconds": run.config.turn_seconds})
             try:
                 info = build_model(run.model, options).info

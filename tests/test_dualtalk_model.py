@@ -19,7 +19,7 @@ from dyadbench.protocol.streaming import stream_agent
 from dyadbench.training.checkpoint import load_checkpoint, save_checkpoint
 from models.dualtalk.config import preset
 from models.dualtalk.model import DualTalkModel
-from models.dualtalk.registry import SHIPPED, build_dualtalk, build_dualtalk_offline
+from models.dualtalk.registry import build_dualtalk, build_dualtalk_offline, shipped
 from models.dualtalk.speech import normalise_waveform
 from models.dualtalk.train import TrainSettings, dualtalk_loss, train_dualtalk_model
 from protocol_clips import make_clip
@@ -39,8 +39,8 @@ def weights(tmp_path_factory) -> Path:
 
 
 def test_shipped_checkpoint_is_committed_and_loads():
-    assert SHIPPED.is_file(), f"{SHIPPED} is missing: train it with the command in models/dualtalk/cli.py"
-    assert SHIPPED.stat().st_size < 8 * 2**20
+    assert shipped().is_file(), f"{shipped()} is missing: train it with the command in models/dualtalk/cli.py"
+    assert shipped().stat().st_size < 8 * 2**20
     model = build_dualtalk(ModelOptions())
     assert model.info.name == "dualtalk" and model.info.config["speech_frontend"] == "logmel"
     assert "dyadbench train dualtalk" in model.info.config["train_command"]

@@ -14,7 +14,7 @@ from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.torch_files import load_tensors_only
 from models.timar import official
-from models.timar.registry import SHIPPED, build_timar
+from models.timar.registry import build_timar, shipped
 from tests.hostile_cli import run_cli
 from tests.timar_official_fixture import (CHECKPOINT, FIXTURE, HEADS, WAV2VEC, arrays,
                                           write_dualtalk_split)
@@ -66,7 +66,7 @@ def test_a_truncated_file_is_refused(tmp_path):
     refused(path, "truncated or not a torch.save file")
 
 
-@pytest.mark.parametrize("other", [DUALTALK_CHECKPOINT, SHIPPED["timar-stream"]])
+@pytest.mark.parametrize("other", [DUALTALK_CHECKPOINT, shipped("timar-stream")])
 def test_a_file_of_another_model_is_refused(other):
     refused(other, "not an official TIMAR checkpoint")
 

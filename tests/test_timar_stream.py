@@ -14,7 +14,7 @@ from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions, StreamingModel
 from dyadbench.protocol.streaming import stream_agent
 from dyadbench.training.checkpoint import save_checkpoint
-from models.timar.registry import SHIPPED, build_timar, build_timar_stream
+from models.timar.registry import build_timar, build_timar_stream, shipped
 from protocol_clips import make_clip
 from test_timar_model import micro_model
 
@@ -159,7 +159,7 @@ def test_model_info_records_weights_and_options(weights):
 
 @pytest.mark.parametrize("name", BUILD)
 def test_shipped_checkpoint_loads_and_streams(name):
-    assert SHIPPED[name].is_file(), f"committed checkpoint {SHIPPED[name]} is missing"
+    assert shipped(name).is_file(), f"committed checkpoint {shipped(name)} is missing"
     model = BUILD[name][0](ModelOptions())
     out = stream_agent(model, make_clip("c3", 3.0), "speaker1", ProtocolConfig(context=1)).motion
     assert out.shape == (75, 56) and np.isfinite(out).all()

@@ -20,11 +20,11 @@ from dyadbench.outputs import OwnedFolder, check_cache, kept_on_failure
 from dyadbench.protocol.config import HISTORY_AGENT, SPEECH_NORMS, TAILS, ProtocolConfig, variant_label
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.perturbations import variant_part
-from dyadbench.registry import DATASETS, MODELS
+from dyadbench.registry import DATASETS, DEFAULT_EMBEDDED, MODELS
 from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import policy
 
-EMBEDDED = "synthetic"
+EMBEDDED = DEFAULT_EMBEDDED
 
 
 def data_options(f: Callable) -> Callable:
@@ -156,7 +156,7 @@ def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], con
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
     options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
-                           device=device, extra=dict(extra or {}))
+                           device=device, dataset=source.dataset, extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
                     predictions_dir=predictions_dir, threads=threads, check_configuration=check_configuration)
 

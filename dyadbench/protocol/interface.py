@@ -46,6 +46,7 @@ class ModelOptions:
     device: str = "cpu"
     cfg_scale: float = 1.0
     train_split: Callable[[], ClipSource] | None = None
+    dataset: str | None = None  # registry name of the evaluated dataset: picks shipped weights (dyadbench.shipped)
     extra: dict = field(default_factory=dict)
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
+from dyadbench.shipped import shipped_checkpoint
 from dyadbench.torch_files import load_tensors_only
 from dyadbench.training.checkpoint import file_digest
 from models.dualtalk.config import DualTalkConfig
@@ -21,14 +22,21 @@ from models.dualtalk.official import is_official, model_from_state, wav2vec_conf
 from models.dualtalk.runtime import DualTalkOffline, DualTalkRunner, DualTalkStream
 
 MODEL_NAME = "dualtalk"
-SHIPPED = Path(__file__).parent / "checkpoints" / "dualtalk-tiny.pt"
+CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
 TRAIN_HINT = "dyadbench train dualtalk --export PATH"
 NATIVE_KEYS = {"model", "config", "meta"}
 
 
-def load_dualtalk(weights: Path | None, wav2vec_folder: str | None = None) -> tuple[DualTalkModel, Path, dict]:
-    """(model in eval mode, checkpoint path, meta); meta is ``{"format": "official"}`` for the released file."""
-    path = Path(weights) if weights is not None else SHIPPED
+def shipped(dataset: str | None = None) -> Path:
+    """The tiny checkpoint shipped for ``dataset``'s corpus (:mod:`dyadbench.shipped`)."""
+    return shipped_checkpoint(CHECKPOINT_DIR, "dualtalk-tiny", dataset)
+
+
+def load_dualtalk(weights: Path | None, wav2vec_folder: str | None = None,
+                  dataset: str | None = None) -> tuple[DualTalkModel, Path, dict]:
+    """(model in eval mode, checkpoint path, meta); meta is ``{"format": "official"}`` for the released file.
+    Without ``weights``: the checkpoint shipped for ``dataset``."""
+    path = Path(weights) if weights is not None else shipped(dataset)
     if not path.is_file():
         where = "given with --weights" if weights is not None else "shipped with the package"
         raise InputError(path, f"no DualTalk checkpoint ({where}); train one with `{TRAIN_HINT}` "
@@ -59,13 +67,13 @@ def _info(name: str, model: DualTalkModel, path: Path, meta: dict, **extra) -> M
 
 def build_dualtalk(options: ModelOptions) -> DualTalkStream:
     """DualTalk under the progressive-context streaming protocol (window of min(t, n) + 1 turns)."""
-    model, path, meta = load_dualtalk(options.weights, options.extra.get("wav2vec_weights"))
+    model, path, meta = load_dualtalk(options.weights, options.extra.get("wav2vec_weights"), options.dataset)
     info = _info(MODEL_NAME, model, path, meta, window="last min(t, n) + 1 turns, current turn kept")
     return DualTalkStream(DualTalkRunner(model, options.device), info)
 
 
 def build_dualtalk_offline(options: ModelOptions) -> DualTalkOffline:
     """DualTalk over the whole clip at once (the published DualTalk protocol; whole-clip normalisation)."""
-    model, path, meta = load_dualtalk(options.weights, options.extra.get("wav2vec_weights"))
+    model, path, meta = load_dualtalk(options.weights, options.extra.get("wav2vec_weights"), options.dataset)
     info = _info(f"{MODEL_NAME}-offline", model, path, meta, speech_norm="clip")
     return DualTalkOffline(DualTalkRunner(model, options.device), info)

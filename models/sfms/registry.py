@@ -6,13 +6,19 @@ from pathlib import Path
 
 from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
+from dyadbench.shipped import shipped_checkpoint
 from dyadbench.training.checkpoint import file_digest
 from models.sfms.bundle import load_sfms
 from models.sfms.stream import SFMSStreamingModel
 
-SHIPPED_WEIGHTS = Path(__file__).parent / "checkpoints" / "sfms-tiny.pt"
+CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
 REPRODUCE = ("dyadbench train sfms-tokenizer --config tiny --out TOK.pt && dyadbench train sfms --config tiny "
              "--clips 400 --steps 4000 --tokenizer TOK.pt --out models/sfms/checkpoints/sfms-tiny.pt")
+
+
+def shipped(dataset: str | None = None) -> Path:
+    """The tiny checkpoint shipped for ``dataset``'s corpus (:mod:`dyadbench.shipped`)."""
+    return shipped_checkpoint(CHECKPOINT_DIR, "sfms-tiny", dataset)
 
 
 def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
@@ -20,7 +26,7 @@ def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
 
     ``options.extra["greedy"]`` (bool) overrides the configured sampling (D17).
     """
-    path = Path(options.weights) if options.weights is not None else SHIPPED_WEIGHTS
+    path = Path(options.weights) if options.weights is not None else shipped(options.dataset)
     if not path.is_file():
         where = "--weights" if options.weights is not None else "the shipped checkpoint"
         raise InputError(path, f"SFMS weights not found ({where}); train them with: {REPRODUCE}")

@@ -24,6 +24,7 @@ from pathlib import Path
 
 from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
+from dyadbench.shipped import shipped_checkpoint
 from dyadbench.torch_files import load_tensors_only
 from dyadbench.training.checkpoint import check_checkpoint, file_digest
 from models.timar.config import TimarConfig
@@ -33,19 +34,25 @@ from models.timar.official import convert_official, is_official, official_global
 from models.timar.streaming import BandStream, FaithfulStream
 
 CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
-SHIPPED = {"timar": CHECKPOINT_DIR / "timar-tiny.pt", "timar-stream": CHECKPOINT_DIR / "timar-stream-tiny.pt"}
+SHIPPED_STEM = {"timar": "timar-tiny", "timar-stream": "timar-stream-tiny"}
 TRAIN_HINT = {"timar": "dyadbench train timar --config tiny --export PATH",
               "timar-stream": "dyadbench train timar-stream --config tiny --export PATH"}
 
 
-def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]:
-    """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta).
+def shipped(name: str, dataset: str | None = None) -> Path:
+    """The tiny checkpoint shipped for ``name``, trained on ``dataset``'s corpus (:mod:`dyadbench.shipped`)."""
+    return shipped_checkpoint(CHECKPOINT_DIR, SHIPPED_STEM[name], dataset)
+
+
+def load_timar(name: str, weights: Path | None, dataset: str | None = None) -> tuple[TimarModel, Path, dict]:
+    """(model with the checkpoint's EMA weights, checkpoint path, checkpoint meta); without ``weights``, the
+    checkpoint shipped for ``dataset``.
 
     A checkpoint from before motion normalisation (no ``motion_norm`` in its config, no motion
     statistics in its weights) loads with ``motion_norm = "none"`` and identity statistics. The released
     TIMAR checkpoint (``timar`` only) is converted in memory.
     """
-    path = Path(weights) if weights is not None else SHIPPED[name]
+    path = Path(weights) if weights is not None else shipped(name, dataset)
     if not path.is_file():
         where = "given with --weights" if weights is not None else "shipped with the package"
         raise InputError(path, f"no {name} checkpoint ({where}); train one with `{TRAIN_HINT[name]}` "
@@ -68,7 +75,7 @@ def load_timar(name: str, weights: Path | None) -> tuple[TimarModel, Path, dict]
 
 
 def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | type[BandStream]):
-    model, path, meta = load_timar(name, options.weights)
+    model, path, meta = load_timar(name, options.weights, options.dataset)
     use_cache = bool(options.extra.get("cache", True))
     temperature = float(options.extra.get("temperature", 1.0))
     clamp_variance = bool(options.extra.get("clamp_variance", meta.get("sampler", {}).get("clamp_variance", True)))
