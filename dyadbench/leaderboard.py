@@ -53,8 +53,9 @@ from dyadbench.results import results_frame
 SETTING = ["source", "dataset", "split", "protocol", "context"]
 LONG_COLUMNS = ["source", "model", "oracle", "flags", "dataset", "split", "protocol", "context", "suite",
                 "metric", "component", "raw", "scaled", "scale", "higher_is_better", "items", "clips", "digest",
-                "seed", "tail", "history_agent", "turn_seconds", "cfg_scale", "weights_digest", "reference"]
-_VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed"]
+                "seed", "tail", "history_agent", "turn_seconds", "cfg_scale", "speech_norm", "weights_digest",
+                "reference"]
+_VARIANT_KEYS = ["turn_seconds", "tail", "history_agent", "cfg_scale", "seed", "speech_norm"]
 _COMPONENTS = {c for layout in LAYOUTS.values() for c in layout.components}
 
 
@@ -211,7 +212,7 @@ def _spec(suite: str, metric: str) -> ColumnSpec | None:
 
 def _reject_duplicates(frame: pd.DataFrame) -> None:
     key = ["model", "flags", "dataset", "split", "protocol", "context", "turn_seconds", "tail", "history_agent",
-           "cfg_scale", "seed", "metric"]
+           "cfg_scale", "speech_norm", "seed", "metric"]
     dup = frame[frame.duplicated(key, keep=False)]
     if not dup.empty:
         files = sorted(set(dup["file"]))

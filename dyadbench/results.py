@@ -328,7 +328,7 @@ def result_files(paths: Iterable[str | Path]) -> list[Path]:
 
 
 RESULT_COLUMNS = ("model", "oracle", "flags", "dataset", "split", "protocol", "context", "turn_seconds", "tail",
-                  "history_agent", "cfg_scale", "seed", "suite", "metric", "raw", "scaled", "scale",
+                  "history_agent", "cfg_scale", "speech_norm", "seed", "suite", "metric", "raw", "scaled", "scale",
                   "items", "clips", "digest", "weights_digest", "file")
 
 
@@ -347,6 +347,7 @@ def results_frame(paths: Iterable[str | Path]) -> pd.DataFrame:
                          "split": r.data.split, "protocol": r.protocol.name, "context": r.protocol.context,
                          "turn_seconds": r.protocol.turn_seconds, "tail": r.protocol.tail,
                          "history_agent": r.protocol.history_agent, "cfg_scale": r.protocol.cfg_scale,
+                         "speech_norm": None if r.protocol.name == EXTERNAL else r.protocol.speech_norm,
                          "seed": r.protocol.seed, "suite": r.suite, "metric": metric, "raw": raw,
                          "scaled": r.scaled.get(metric, math.nan), "scale": r.scaling.get(metric, 1.0),
                          "items": r.data.items, "clips": r.data.clips, "digest": r.data.digest,

@@ -89,6 +89,17 @@ def test_duplicate_runs_are_rejected(results_dir, tmp_path):
         long_table([copy])
 
 
+def test_runs_differing_only_in_speech_normalisation_are_separate_rows(results_dir, tmp_path):
+    copy = tmp_path / "r"
+    shutil.copytree(results_dir, copy)
+    data = json.loads((copy / "handmade/test/n0/zero.json").read_text())
+    data["protocol"]["speech_norm"] = "clip"
+    (copy / "handmade/test/n0/zero@speech-clip.json").write_text(json.dumps(data))
+    wide = wide_table(long_table([copy]))
+    at_zero = wide[wide["context"] == "0"]
+    assert {"zero", "zero (speech-clip)"} <= set(at_zero["model"])
+
+
 def test_published_rows_are_the_timar_tables():
     rows = paper_rows(PAPER_ROWS)
     assert set(rows["source"]) == {"paper"} and not rows["oracle"].any()
