@@ -2,11 +2,14 @@
 
 Index (fitted on the train split, cached by its digest): every whole turn of every generated direction
 (both, or the clip's ``agents``) of up to ``MAX_TRAIN_CLIPS`` train clips (evenly spaced over the sorted
-clip ids). A turn is described by its partner's behaviour in that turn only:
+clip ids), except turns holding a frame the layout marks invalid for either participant
+(:func:`baselines.fitting.valid_frames`; Seamless Interaction's zero-filled blocks), so no zero-filled
+motion is ever retrieved. A turn is described by its partner's behaviour in that turn only:
 
 - partner motion: per-dimension mean and standard deviation over the turn's frames (2·D values);
-- partner speech: mean and standard deviation over the turn's frames of the 40-band log-mel features
-  of the turn's audio (:func:`dyadbench.features.logmel.logmel_frames`; 80 values), or, for a dataset
+- partner speech: mean and standard deviation over the turn of the 40-band log-mel features of the
+  turn's audio (:func:`dyadbench.features.logmel.logmel_frames`, one row per motion frame with the hop
+  sample_rate / fps rounded to whole samples: 640 at 16 kHz / 25 fps, 533 at 30 fps; 80 values), or, for a dataset
   that ships speech features instead of a waveform (Learning2Listen), over the turn's feature rows
   (2·B values; the index records which, and a stream must match it).
 
@@ -25,7 +28,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 from tqdm import tqdm
 
-from baselines.fitting import cached_fit, open_train
+from baselines.fitting import cached_fit, open_train, valid_frames
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.features.logmel import logmel_frames
@@ -44,7 +47,8 @@ def turn_speech(user_audio: np.ndarray, user_features: np.ndarray | None, sample
     audio (K, S) -> (K, F, N_MELS)."""
     if user_features is not None:
         return np.asarray(user_features, np.float64)
-    return np.stack([logmel_frames(a, sample_rate, fps, n_mels=N_MELS) for a in user_audio])
+    rate = sample_rate / round(sample_rate / fps)  # whole-sample hop; only each turn's mean and std are used
+    return np.stack([logmel_frames(a, sample_rate, rate, n_mels=N_MELS) for a in user_audio])
 
 
 def partner_features(user_motion: np.ndarray, speech: np.ndarray) -> np.ndarray:
@@ -87,11 +91,13 @@ def build_index(source: ClipSource, turn_seconds: float) -> dict[str, np.ndarray
             r = user.feature_rows_per_frame
             feats = None if r is None else split_turns(user.speech_features, K, F * r)
             speech = turn_speech(split_turns(np.asarray(user.audio, np.float32), K, S), feats, sample_rate, fps)
-            features.append(partner_features(split_turns(np.asarray(user.motion, np.float64), K, F), speech))
-            targets.append(split_turns(np.asarray(agent.motion, np.float32), K, F))
+            valid = (split_turns(valid_frames(agent.motion, clip.layout), K, F).all(axis=1)
+                     & split_turns(valid_frames(user.motion, clip.layout), K, F).all(axis=1))
+            features.append(partner_features(split_turns(np.asarray(user.motion, np.float64), K, F), speech)[valid])
+            targets.append(split_turns(np.asarray(agent.motion, np.float32), K, F)[valid])
             kinds.add(speech_kind(feats))
-    if not features:
-        raise InputError(f"{source.dataset}/{source.split}", "no whole turns in the train clips")
+    if not sum(len(t) for t in targets):
+        raise InputError(f"{source.dataset}/{source.split}", "no whole valid turns in the train clips")
     if len(kinds) > 1:
         raise InputError(f"{source.dataset}/{source.split}", f"partners' speech differs between clips: "
                                                              f"{', '.join(sorted(kinds))}")

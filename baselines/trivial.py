@@ -1,8 +1,9 @@
 """Trivial baselines that ignore the conversation: zero, mean frame, median frame, random frames.
 
 - ``zero``: every coefficient 0 (the neutral FLAME face, head rotation 0).
-- ``mean-frame`` / ``median-frame``: the per-dimension mean / median of every frame of every participant
-  of the train split, repeated (see :func:`baselines.fitting.frame_statistics`).
+- ``mean-frame`` / ``median-frame``: the per-dimension mean / median of every valid frame of every
+  participant of the train split, repeated (see :func:`baselines.fitting.frame_statistics`; a layout's
+  invalid frames, e.g. Seamless Interaction's zero-filled blocks, are left out).
 - ``random``: i.i.d. Gaussian frames with the train mean and covariance,
   x = μ + V·diag(√max(λ, 0))·z, z ~ N(0, I), where Σ = V diag(λ) Vᵀ; the generator of each stream is
   seeded by the stream's seed (derived from the run seed, clip and agent), and frames are drawn in time
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from baselines.fitting import cached_fit, frame_statistics, open_train
+from baselines.fitting import STATS_VERSION, cached_fit, frame_statistics, open_train
 from dyadbench.errors import InputError
 from dyadbench.motion import LAYOUTS
 from dyadbench.protocol.interface import (ModelInfo, ModelOptions, OfflineModel, StreamContext, StreamingModel,
@@ -70,7 +71,7 @@ def _info(name: str, options: ModelOptions, **extra) -> ModelInfo:
 
 def _fitted(name: str, options: ModelOptions) -> tuple[dict[str, np.ndarray], dict]:
     source = open_train(options.train_split, name)
-    stats, digest = cached_fit("frame-stats", FIT_VERSION, source, frame_statistics)
+    stats, digest = cached_fit("frame-stats", STATS_VERSION, source, frame_statistics)
     layout = options.extra.get("layout", "flame56")
     dims, expected = stats["mean"].shape[0], LAYOUTS[layout].dim
     if dims != expected:

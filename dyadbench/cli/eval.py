@@ -12,6 +12,7 @@ from typing import Callable
 import click
 
 from dyadbench import atomic
+from dyadbench.cli.cluster import scheduler_option
 from dyadbench.cli.options import NON_NEGATIVE, POSITIVE, SEED, PerturbationSpec, check_cfg_scale, torch_device
 from dyadbench.cli.splits import ON_DISK, open_splits, split_help
 from dyadbench.datasets.base import ClipSource, InMemorySource
@@ -248,6 +249,7 @@ def is_predictions_folder(folder: Path) -> bool:
                    "previous output untouched.")
 @click.option("--force", is_flag=True,
               help="Replace --out even when it holds files that are not a previous eval output.")
+@scheduler_option
 def eval_command(model: str, split: str | None, context: int, turn_seconds: float, tail: str,
                  history_agent: str, seed: int, cfg_scale: float, weights: Path | None, wav2vec: Path | None,
                  device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,

@@ -11,7 +11,8 @@ from dyadbench.cli.eval import data_options, resolve_dataset, wav2vec_extra
 from dyadbench.cli.options import POSITIVE, SEED
 from dyadbench.cli.splits import open_splits
 from dyadbench.cli.eval import run_variant
-from dyadbench.cli.sweep import _csv, result_path, run_to_file
+from dyadbench.cli.cluster import ClusterSweep, scheduler_option
+from dyadbench.cli.sweep import _csv, result_path, runs_to_files
 from dyadbench.errors import InputError
 from dyadbench.outputs import check_cache, check_folder
 from dyadbench.protocol.config import ProtocolConfig
@@ -63,6 +64,7 @@ def write_report(results: Path, out: Path) -> list[Path]:
 @click.option("--per-clip/--no-per-clip", default=True, show_default=True, help="Keep per-clip metrics.")
 @click.option("--force", is_flag=True, help="Re-run runs whose result file holds the same configuration.")
 @click.option("--table-only", is_flag=True, help="Run nothing: rebuild the table and plot from --results.")
+@scheduler_option
 def robustness(models: str | None, split: str, context: int, levels: str, burst_s: float, seed: int,
                noise_scale: float | None, wav2vec: Path | None, data: Path | None, dataset: str | None,
                train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
@@ -92,13 +94,16 @@ def robustness(models: str | None, split: str, context: int, levels: str, burst_
         check_cache()
         check_folder(results, f"--results {results}")
         source, train_split = open_splits(data, name_, split, train=train, allow_overlap=allow_train_overlap)
+        run_or_send = runs_to_files()  # with --scheduler: one task per run
         for name in names:
             for perturbations in settings:
                 config = ProtocolConfig(context=context, seed=seed, perturbations=perturbations,
                                         noise_scale=noise_scale)
                 path = result_path(results, name_, source.split, context, name, run_variant(config, 1.0))
-                run_to_file(path, name, source, train_split, config, cfg_scale=1.0, weights=None, clips=clips,
+                run_or_send(path, name, source, train_split, config, cfg_scale=1.0, weights=None, clips=clips,
                             jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
                             per_clip=per_clip)
+        if isinstance(run_or_send, ClusterSweep):
+            run_or_send.finish()
     for path in write_report(results, out):
         click.echo(f"wrote {path}")

@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from dyadbench import atomic
+from dyadbench.cli.cluster import scheduler_option
 from dyadbench.cli.options import SEED
 from dyadbench.outputs import check_folder, kept_on_failure
 from dyadbench.registry import SUITES
@@ -58,12 +59,13 @@ def default_model_name(pred: Path) -> str:
               help="Write DIR/result.json (the typed result eval writes, protocol 'external predictions', "
                    "ready for `dyadbench leaderboard DIR`) and DIR/per_clip.csv, atomically.")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
-              help="Worker processes for per-clip metrics.")
+              help="Worker processes for per-clip metrics (with --scheduler: tasks on the cluster).")
 @click.option("--strict", is_flag=True,
               help="Exit non-zero when any expected prediction is missing or excluded (NaN/inf values, too "
                    "few frames). Predictions without ground truth are listed, never fatal.")
 @click.option("--seed", default=0, show_default=True, type=SEED,
               help="Seed for the randomised metrics (diversity index draws); recorded in the result.")
+@scheduler_option
 def score(pred: Path, gt: Path, suite: str, split: str | None, model: str | None, out: Path | None, jobs: int,
           strict: bool, seed: int) -> None:
     """Score PRED against ground truth GT with the metrics of the published scripts.

@@ -27,6 +27,8 @@ from typing import Callable, Iterator
 import click
 from click.core import ParameterSource
 
+from dyadbench import distributed
+from dyadbench.cli.cluster import ClusterSweep, scheduler_option
 from dyadbench.cli.eval import (data_options, is_predictions_folder, predictions_at, protocol_options,
                                 resolve_dataset, run_one, run_variant, save_result, summary, wav2vec_extra)
 from dyadbench.cli.options import IntList, check_cfg_scale
@@ -116,8 +118,7 @@ def rerun_stale(out: Path, jobs: int, threads: int | None) -> None:
         click.echo(f"re-running {verdict.line()}")
         run = recorded_run(load_result(path))
         result = rerun(run, checker, jobs, threads)
-        click.echo(summary(result).splitlines()[0] + f" -> {path}")
-        save_result(result if run.per_clip else without_per_clip(result), path)
+        written(result, path, run.per_clip)
         rerun_count += 1
     click.echo(f"{rerun_count} stale result file(s) of {len(files)} under {out} re-run")
 
@@ -159,8 +160,9 @@ def _csv(value: str, what: str) -> list[str]:
 @click.option("--stale", is_flag=True,
               help="Re-run only the result files under --out whose provenance no longer matches the current "
                    "code and data (the rows `dyadbench leaderboard` warns about), each with the settings it "
-                   "records, writing over the file. Takes only --out, --jobs and --threads.")
+                   "records, writing over the file. Takes only --out, --scheduler, --jobs and --threads.")
 @click.pass_context
+@scheduler_option
 def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
           tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None,
           wav2vec: Path | None, device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
@@ -176,6 +178,8 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
       dyadbench leaderboard results/ --out leaderboards/ --latex
     Rows whose provenance no longer matches (e.g. a model's new version) are re-run by:
       dyadbench sweep --stale --out results/ --jobs 2
+    With --scheduler each run is one task on the cluster (--stale: each run's clips in chunks); a run that
+    fails is reported after the others finish, and the same command again does only what is missing.
     """
     if stale:
         given = _given(ctx, RUN_OPTIONS)
@@ -199,6 +203,7 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
         check_folder(keep_predictions, f"--keep-predictions {keep_predictions}")
     runs = sweep_splits(data, dataset_name, None if splits is None else _csv(splits, "splits"), train=train,
                         allow_overlap=allow_train_overlap)
+    run_or_send = runs_to_files()
     for source, train_split in runs:
         split = source.split
         for context in context_list:
@@ -210,9 +215,11 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                 path = result_path(out, dataset_name, split, context, name, variant)
                 preds = (result_path(keep_predictions, dataset_name, split, context, name, variant).with_suffix("")
                          if keep_predictions else None)
-                run_to_file(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
+                run_or_send(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                             clips=clips, jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
                             per_clip=per_clip, preds=preds, device=device)
+    if isinstance(run_or_send, ClusterSweep):
+        run_or_send.finish()
 
 
 def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConfig, *, cfg_scale: float,
@@ -231,6 +238,17 @@ def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConf
         return None
     if preds is not None:
         result = predictions_at(result, preds)
+    return written(result, path, per_clip)
+
+
+def written(result: EvalResult, path: Path, per_clip: bool) -> EvalResult:
+    """``result`` saved to ``path`` (atomically; per-clip rows dropped unless ``per_clip``), said on one line."""
     click.echo(summary(result).splitlines()[0] + f" -> {path}")
     save_result(result if per_clip else without_per_clip(result), path)
     return result
+
+
+def runs_to_files() -> Callable:
+    """:func:`run_to_file`, or while a cluster is active (``--scheduler``) a :class:`~dyadbench.cli.cluster.ClusterSweep`
+    taking the same arguments, which sends each run as one task; its ``finish()`` writes the results."""
+    return ClusterSweep(reuse_check, written, Unchanged) if distributed.active() is not None else run_to_file
