@@ -7,7 +7,9 @@ the trip back (a third-party exception that does not unpickle) arrives as a ``Ru
 type, message and worker traceback, instead of breaking the pool (``BrokenProcessPool``). An exception
 raised by the worker initialiser does not break the pool either: it is kept and raised by the worker's
 first item instead. On an error, or when the caller stops iterating, pending items are cancelled
-rather than computed.
+rather than computed. While a Dask cluster is active (``--scheduler``, :func:`dyadbench.distributed.connected`)
+the same chunks go to its workers instead (:func:`dyadbench.distributed.cluster_map`), with the same order
+and errors.
 """
 
 from __future__ import annotations
@@ -17,6 +19,8 @@ import pickle
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing.context import BaseContext
 from typing import Callable, Iterator, Sequence, TypeVar
+
+from dyadbench import distributed
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -56,6 +60,9 @@ def process_map(fn: Callable[[T], R], items: Sequence[T], *, jobs: int, context:
     ``fn`` and ``initializer`` must be module-level functions (they are sent to the workers by
     reference); ``initializer(*initargs)`` runs once in each worker before its first item.
     """
+    if distributed.active() is not None:
+        yield from distributed.cluster_map(fn, items, initializer=initializer, initargs=initargs, chunksize=chunksize)
+        return
     pool = ProcessPoolExecutor(max_workers=jobs, mp_context=context,
                                initializer=_guarded_init, initargs=(initializer, tuple(initargs)))
     try:
