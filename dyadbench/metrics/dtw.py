@@ -38,6 +38,19 @@ only the candidates whose lower end does not exceed the smallest upper end are r
 those include every candidate whose float64 value attains the minimum, so the minimum and the first
 candidate attaining it are exactly those of computing every pair in float64. The screen changes the
 running time only, never a result (tests compare both ways bit for bit).
+
+Pruning (early abandoning, ``prune=True``): every warping path crosses each column j of the grid, and
+along a path C never decreases (a non-negative cost added with rounding to nearest gives a result >=
+the other operand; min returns one of its operands), so in the computed arithmetic itself
+``C(T1-1, T2-1) >= min_i C(i, j)``. Evaluating the pair's value expression ``0 + sum_g w_g sqrt(.)`` on
+these column minima (the right border of a finished strip) therefore gives a lower bound of the
+computed value: sqrt, products with w_g >= 0 and sums are monotone. Each pass first aligns a query's
+most promising candidates; its other candidates are abandoned (value inf) once their bound exceeds: in
+float64, the smallest of those values (strictly: an abandoned candidate is strictly worse, so neither
+the minimum nor the first candidate attaining it changes); in float32, their smallest screen upper
+end, comparing the bound's screen lower end (an abandoned candidate would have been screened out
+anyway, so the same candidates reach the float64 pass). The bound only helps when candidates differ clearly: DTW without a
+window tolerates any time warp, so the prefix of the grid carries no more than its share of the cost.
 """
 
 from __future__ import annotations
@@ -51,6 +64,10 @@ LANES = 16
 STRIP = 16
 WIDTH = STRIP * LANES
 FUSED = 3  # groups swept together in one recurrence loop (padded with zero-cost groups)
+CHECK_EVERY = 4  # strips between two pruning checks (a check costs about 1/16 of a strip)
+COARSE_FRAMES = 75  # frames of the subsampled series that order candidates for pruning
+PRUNE_GAP = 0.25  # candidates ranked within this factor of a query's best are aligned in full first
+PRUNE_MIN_SHARE = 0.1  # below this share of candidates left to prune, every candidate is aligned in one round
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -137,7 +154,27 @@ def _sweep_rows(grid, costs, q0, p0, c0, q1, p1, c1, q2, p2, c2, n):
 
 
 @njit(cache=True, nogil=True)
-def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
+def _lower_bounds_exceed(bnd, t1, n_groups, weights, count, limits, scale, slack):
+    """True when every lane b < count has ``(0 + sum_g w_g sqrt(min_i bnd[g, (i+1) LANES + b])) * scale - slack
+    > limits[b]``: the right border of a strip holds C_g(i, j) of one column j, which every warping path
+    crosses, and C only grows along a path (non-negative costs added with rounding to nearest), so this is
+    the final value's expression evaluated on smaller arguments (see the module docstring, pruning)."""
+    for b in range(count):
+        value = 0.0
+        for g in range(n_groups):
+            low = bnd[g, LANES + b]
+            for i in range(1, t1):
+                c = bnd[g, (i + 1) * LANES + b]
+                if c < low:
+                    low = c
+            value = value + weights[g] * np.sqrt(low)
+        if not value * scale - slack > limits[b]:
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True)
+def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot, limits, count, scale, slack):
     """Align the shared series ``x`` (T1, D) against the LANES series in ``ys`` (D, T2 * LANES); or, when
     ``xl`` is not empty, lane b's own series ``xl[:, t * LANES + b]`` (D, T1 * LANES) against lane b of
     ``ys`` (``x`` is then unused and nothing is tabulated).
@@ -148,6 +185,10 @@ def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
 
     Writes ``out[b] = 0 + sum_g weights[g] * sqrt(C_g(T1-1, T2-1))`` for each lane b. The grid is
     computed in the dtype of ``x`` and ``ys`` (float64: exact; float32: the screen's approximation).
+
+    Pruning: every :data:`CHECK_EVERY` strips, when the lower bound ``value * scale - slack`` of each of
+    the first ``count`` lanes exceeds its ``limits[b]`` (:func:`_lower_bounds_exceed`), the alignment is
+    abandoned and every ``out[b]`` is inf. With all limits inf nothing is checked.
     """
     per_lane = xl.shape[0] > 0
     t1 = xl.shape[1] // LANES if per_lane else x.shape[0]
@@ -164,7 +205,14 @@ def _align_lanes(x, xl, ys, gstart, gstop, weights, out, rep, rep_ptr, slot):
     cost_of = np.empty(padded, dtype=np.int64)
     for g in range(n_groups, padded):
         cost_of[g] = n_rep + g
+    prune = False
+    for b in range(count):
+        prune = prune or limits[b] < np.inf
     for j0 in range(0, t2, STRIP):
+        if prune and j0 > 0 and (j0 // STRIP) % CHECK_EVERY == 0 and _lower_bounds_exceed(
+                bnd, t1, n_groups, weights, count, limits, scale, slack):
+            out[:] = np.inf
+            return
         w = min(STRIP, t2 - j0)
         n = w * LANES
         for d in range(ys.shape[0]):
@@ -232,14 +280,15 @@ def _pad_columns(x, cols):
 
 
 @njit(cache=True, parallel=True)
-def _batched_values(shared, lanes, pair_s, pair_l, batch_start, weights, rep, rep_ptr, slot, cols, pstart, pstop):
+def _batched_values(shared, lanes, pair_s, pair_l, batch_start, weights, rep, rep_ptr, slot, cols, pstart, pstop,
+                    limits, scale, slack):
     """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), computed LANES pairs at a time in the
     dtype of ``shared``.
 
     Pairs are sorted by ``pair_s``; batch b is ``batch_start[b]:batch_start[b+1]`` (one shared series,
     at most LANES pairs). ``rep``/``rep_ptr``/``slot``: the repeated rows of each shared series
     (:func:`_repeated_rows`); ``cols``/``pstart``/``pstop``: the groups' dims padded to multiples of four
-    (:func:`_pad_groups`).
+    (:func:`_pad_groups`); ``limits``/``scale``/``slack``: pruning (:func:`_align_lanes`), per pair.
     """
     values = np.empty(pair_s.shape[0])
     for b in prange(batch_start.shape[0] - 1):
@@ -254,14 +303,15 @@ def _batched_values(shared, lanes, pair_s, pair_l, batch_start, weights, rep, re
         _interleave(lanes, idx, count, cols, ys)
         ptr = rep_ptr[m]
         _align_lanes(_pad_columns(shared[m], cols), np.empty((0, 0), dtype=shared.dtype), ys, pstart, pstop,
-                     weights, out, rep[ptr[0]:ptr[-1]], ptr - ptr[0], slot[m])
+                     weights, out, rep[ptr[0]:ptr[-1]], ptr - ptr[0], slot[m], limits[first:first + count], count,
+                     scale, slack)
         for lane in range(count):
             values[first + lane] = out[lane]
     return values
 
 
 @njit(cache=True, parallel=True)
-def _paired_values(shared, lanes, pair_s, pair_l, weights, cols, pstart, pstop):
+def _paired_values(shared, lanes, pair_s, pair_l, weights, cols, pstart, pstop, limits, scale, slack):
     """Value of each pair (shared[pair_s[p]], lanes[pair_l[p]]), LANES consecutive pairs at a time with
     both series per lane: full lanes when the pairs share no series (the screen's float64 pass)."""
     values = np.empty(pair_s.shape[0])
@@ -277,7 +327,7 @@ def _paired_values(shared, lanes, pair_s, pair_l, weights, cols, pstart, pstop):
         _interleave(shared, pair_s[first:first + count], count, cols, xl)
         _interleave(lanes, pair_l[first:first + count], count, cols, ys)
         _align_lanes(np.empty((0, cols.shape[0]), dtype=shared.dtype), xl, ys, pstart, pstop, weights, out, no_rep,
-                     no_ptr, no_slot)
+                     no_ptr, no_slot, limits[first:first + count], count, scale, slack)
         for lane in range(count):
             values[first + lane] = out[lane]
     return values
@@ -362,24 +412,30 @@ def _batches(sorted_shared: np.ndarray) -> np.ndarray:
     return np.concatenate([np.arange(a, b, LANES) for a, b in runs] + [[n]]).astype(np.int64)
 
 
-def _values(shared, lanes, pair_s, pair_l, groups) -> np.ndarray:
+def _values(shared, lanes, pair_s, pair_l, groups, limits=None, scale: float = 1.0, slack: float = 0.0) -> np.ndarray:
     """Values of the listed pairs, in the given pair order, computed in the dtype of ``shared``.
 
     Pairs are batched by shared series (one broadcast series, repeated rows tabulated) unless that
     would leave most lanes empty (pairs that share little, as in the screen's float64 pass); then
-    LANES arbitrary pairs form a batch. The values are the same either way.
+    LANES arbitrary pairs form a batch. The values are the same either way. With ``limits`` (per pair),
+    a batch whose every pair has ``value * scale - slack`` certainly above its limit may be abandoned:
+    those pairs get inf (:func:`_align_lanes`); every other value is unchanged.
     """
     if len(pair_s) == 0:
         return np.empty(0)
+    limits = np.full(len(pair_s), np.inf) if limits is None else np.asarray(limits, dtype=np.float64)
     order = np.argsort(pair_s, kind="stable")
     batches = _batches(pair_s[order])
     values = np.empty(len(pair_s))
     cols, pstart, pstop = _pad_groups(*groups[:2])
+    prune = (limits[order], float(scale), float(slack))
     if len(batches) - 1 > 2 * -(-len(pair_s) // LANES):
-        values[order] = _paired_values(shared, lanes, pair_s[order], pair_l[order], groups[2], cols, pstart, pstop)
+        values[order] = _paired_values(shared, lanes, pair_s[order], pair_l[order], groups[2], cols, pstart, pstop,
+                                       *prune)
     else:
         values[order] = _batched_values(shared, lanes, pair_s[order], pair_l[order], batches, groups[2],
-                                        *_repeated_rows(shared, pair_s, groups[0], groups[1]), cols, pstart, pstop)
+                                        *_repeated_rows(shared, pair_s, groups[0], groups[1]), cols, pstart, pstop,
+                                        *prune)
     return values
 
 
@@ -428,13 +484,19 @@ def dtw(x, y) -> float:
     return float(weighted_dtw_pairs(x[None], y[None], [0], [0])[0])
 
 
-def _screen_bounds(approx, t1: int, t2: int, dims: int, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Interval certain to hold the float64 value of each pair, from its float32 value (module docstring)."""
+def _screen_margin(t1: int, t2: int, dims: int, weights: np.ndarray) -> tuple[float, float]:
+    """(relative margin m, absolute slack) of the screen: the float64 value of a pair lies in
+    ``[v32 (1 - m) - slack, v32 (1 + m) + slack]`` of its float32 value v32 (module docstring)."""
     eps = (t1 + t2 + dims + 4) * 2.0 ** -24
-    margin = 4 * eps
     # subnormal float32 results: each of the <= (t1 + t2) (dims + 3) operations on a path errs by at most
     # 2**-149 absolutely; the square root turns an absolute error e of a sum into at most sqrt(e)
     slack = 2 * max(1.0, float(weights.sum())) * np.sqrt((t1 + t2) * (dims + 3) * 2.0 ** -149)
+    return 4 * eps, float(slack)
+
+
+def _screen_bounds(approx, t1: int, t2: int, dims: int, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Interval certain to hold the float64 value of each pair, from its float32 value (module docstring)."""
+    margin, slack = _screen_margin(t1, t2, dims, weights)
     return approx * (1 - margin) - slack, approx * (1 + margin) + slack
 
 
@@ -453,7 +515,47 @@ def _float32_copies(queries: np.ndarray, refs: np.ndarray):
     return copies
 
 
-def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: bool = True,
+def _coarse_values(queries, refs, indices, pair_q, groups) -> np.ndarray:
+    """Cheap ordering key of each pair: its value on the series subsampled to about :data:`COARSE_FRAMES`
+    frames, in float32 (about (T / COARSE_FRAMES)**2 times less work than the pair itself)."""
+    coarse = [np.ascontiguousarray(a[:, ::max(1, -(-a.shape[1] // COARSE_FRAMES))], dtype=np.float32)
+              for a in (queries, refs)]
+    return _values(coarse[1], coarse[0], indices, pair_q, groups)
+
+
+def _pruned_values(shared, lanes, pair_s, pair_l, groups, pairs, rank, limit_of=None, scale: float = 1.0,
+                   slack: float = 0.0) -> np.ndarray:
+    """Values of ``pairs`` (indices into the pair lists, whose lane series ``pair_l`` is the query); inf for
+    the other pairs and for pairs that cannot attain their query's minimum.
+
+    ``rank`` None: every listed pair is aligned in full. Otherwise, per query, the listed pairs whose
+    ``rank`` is within a factor 1 + :data:`PRUNE_GAP` of the query's smallest are aligned in full first
+    (near ties gain nothing from pruning; when fewer than :data:`PRUNE_MIN_SHARE` of the pairs remain,
+    all are aligned in one round); the smallest of their values v sets the query's limit
+    ``limit_of(v)`` (default v itself), and the query's other pairs are aligned with pruning against it
+    (:func:`_values`): a pair is abandoned only when ``value * scale - slack`` certainly exceeds the limit.
+    """
+    values = np.full(len(pair_s), np.inf)
+    if rank is None:
+        values[pairs] = _values(shared, lanes, pair_s[pairs], pair_l[pairs], groups)
+        return values
+    queries = int(pair_l.max()) + 1
+    lowest = np.full(queries, np.inf)
+    np.minimum.at(lowest, pair_l[pairs], rank[pairs])
+    near = rank[pairs] <= lowest[pair_l[pairs]] * (1 + PRUNE_GAP)
+    if np.count_nonzero(~near) < PRUNE_MIN_SHARE * len(pairs):  # too few to gain from a second round
+        values[pairs] = _values(shared, lanes, pair_s[pairs], pair_l[pairs], groups)
+        return values
+    first, rest = pairs[near], pairs[~near]
+    values[first] = _values(shared, lanes, pair_s[first], pair_l[first], groups)
+    best = np.full(queries, np.inf)
+    np.minimum.at(best, pair_l[first], values[first])
+    limits = best if limit_of is None else limit_of(best)
+    values[rest] = _values(shared, lanes, pair_s[rest], pair_l[rest], groups, limits[pair_l[rest]], scale, slack)
+    return values
+
+
+def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: bool = True, prune: bool = True,
                      threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """For each query q: the minimum over its candidates r of the weighted grouped DTW, and where.
 
@@ -465,8 +567,12 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: boo
     Work is batched by reference (one reference shared by LANES queries). With ``screen`` (default),
     when the inputs allow it, every pair is first aligned in float32 and only the candidates that can
     still attain a query's minimum are aligned in float64 (see the module docstring): the same values
-    and positions as ``screen=False``, which aligns every pair in float64. ``threads`` caps numba's
-    threads for this call.
+    and positions as ``screen=False``, which aligns every pair in float64. With ``prune`` (default), each
+    pass first aligns the most promising candidates of each query in full (:func:`_pruned_values`;
+    float32 pass: ranked by their value on subsampled series; float64 pass: by their float32 value) and
+    then abandons the others as soon as a lower bound shows they cannot attain the minimum (module
+    docstring): again the same values and positions.
+    ``threads`` caps numba's threads for this call.
     """
     queries, refs = _check_series(queries, refs)
     indptr = np.asarray(indptr, dtype=np.int64)
@@ -487,15 +593,18 @@ def min_weighted_dtw(queries, refs, indptr, indices, groups=None, *, screen: boo
         set_num_threads(max(1, min(int(threads), previous)))
     try:
         copies = _float32_copies(queries, refs) if screen else None
+        everything = np.arange(len(indices))
+        rank = _coarse_values(queries, refs, indices, pair_q, groups) if prune else None
         if copies is not None:
             queries32, refs32 = copies
-            approx = _values(refs32, queries32, indices, pair_q, groups)
+            margin, slack = _screen_margin(queries.shape[1], refs.shape[1], queries.shape[2], groups[2])
+            approx = _pruned_values(refs32, queries32, indices, pair_q, groups, everything, rank,
+                                    lambda v: v * (1 + margin) + slack, 1 - margin, slack)
             low, high = _screen_bounds(approx, queries.shape[1], refs.shape[1], queries.shape[2], groups[2])
-            keep = low <= np.minimum.reduceat(high, indptr[:-1])[pair_q]
-            values = np.full(len(indices), np.inf)
-            values[keep] = _values(refs, queries, indices[keep], pair_q[keep], groups)
+            keep = np.flatnonzero(low <= np.minimum.reduceat(high, indptr[:-1])[pair_q])
+            values = _pruned_values(refs, queries, indices, pair_q, groups, keep, approx if prune else None)
         else:
-            values = _values(refs, queries, indices, pair_q, groups)
+            values = _pruned_values(refs, queries, indices, pair_q, groups, everything, rank)
     finally:
         set_num_threads(previous)
     best = np.minimum.reduceat(values, indptr[:-1])

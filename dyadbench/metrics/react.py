@@ -169,8 +169,8 @@ def fr_corr(p, lst, indptr, indices) -> float:
     return float(np.mean(_sum_over_reactions(fr_corr_per_reaction(p, lst, indptr, indices))))
 
 
-def fr_dist_per_reaction(p, lst, indptr, indices, *, screen: bool = True, threads: int | None = None,
-                         progress: bool = False) -> np.ndarray:
+def fr_dist_per_reaction(p, lst, indptr, indices, *, screen: bool = True, prune: bool = True,
+                         threads: int | None = None, progress: bool = False) -> np.ndarray:
     """(N, R): min over appropriate real reactions j of the grouped DTW of P[k, i] and L[j]."""
     n, r = p.shape[:2]
     out = np.empty((n, r))
@@ -180,23 +180,26 @@ def fr_dist_per_reaction(p, lst, indptr, indices, *, screen: bool = True, thread
         ptr = _chunk_indptr(indptr, rows, r)
         cand = np.concatenate([np.tile(indices[indptr[k]:indptr[k + 1]], r) for k in range(rows.start, rows.stop)])
         queries = np.ascontiguousarray(p[rows]).reshape(-1, p.shape[2], DIM)  # float32, widened in the kernel
-        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, screen=screen, threads=threads)
+        values, _ = min_weighted_dtw(queries, refs, ptr, cand, DTW_GROUPS, screen=screen, prune=prune,
+                                     threads=threads)
         out[rows] = values.reshape(-1, r)
         bar.update(rows.stop - rows.start)
     bar.close()
     return out
 
 
-def fr_dist(p, lst, indptr, indices, *, screen: bool = True, threads: int | None = None) -> float:
+def fr_dist(p, lst, indptr, indices, *, screen: bool = True, prune: bool = True,
+            threads: int | None = None) -> float:
     """FRDist (lower is better).
 
     .. math:: \\mathrm{FRDist} = \\frac{1}{N}\\sum_k \\sum_i \\min_{j: S_{kj}=1}
               \\Big(\\tfrac{1}{15}\\mathrm{DTW}(P^{AU}_{k,i}, L^{AU}_j) + \\mathrm{DTW}(P^{VA}_{k,i}, L^{VA}_j)
               + \\tfrac18\\mathrm{DTW}(P^{FE}_{k,i}, L^{FE}_j)\\Big)
 
-    with exact DTW (:mod:`dyadbench.metrics.dtw`), one warping path per group.
+    with exact DTW (:mod:`dyadbench.metrics.dtw`), one warping path per group. ``screen`` and ``prune``
+    (:func:`~dyadbench.metrics.dtw.min_weighted_dtw`) change the running time only.
     """
-    per = fr_dist_per_reaction(p, lst, indptr, indices, screen=screen, threads=threads)
+    per = fr_dist_per_reaction(p, lst, indptr, indices, screen=screen, prune=prune, threads=threads)
     return float(np.mean(_sum_over_reactions(per)))
 
 
