@@ -26,10 +26,12 @@ from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import policy
 
 EMBEDDED = DEFAULT_EMBEDDED
+#: --batch default, from benchmarks/results/batched_streaming.md (TIMAR throughput levels off around it).
+DEFAULT_BATCH = 16
 
 
 def data_options(f: Callable) -> Callable:
-    """--data / --dataset / --train / --allow-train-overlap / --clips / --jobs / --threads, shared by ``eval``
+    """--data / --dataset / --train / --allow-train-overlap / --clips / --jobs / --threads / --batch, shared by ``eval``
     and ``sweep`` (see :mod:`dyadbench.cli.splits`)."""
     options = [
         click.option("--data", "data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
@@ -55,6 +57,11 @@ def data_options(f: Callable) -> Callable:
                           "1 per worker otherwise. Use 1 when other jobs share the machine: small models "
                           "stream fastest on one thread, and more threads than free cores can slow "
                           "streaming down about tenfold."),
+        click.option("--batch", default=DEFAULT_BATCH, show_default=True, type=click.IntRange(min=1),
+                     help="Directions (clip x participant) streamed together, their turns handed to the model in "
+                          "one call (per process). Predictions are those of streaming one direction at a time, "
+                          "so it is not recorded; models that batch their forward passes (TIMAR, "
+                          "TIMAR-stream, DualTalk) run faster, the others loop over the batch. 1: one at a time."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
@@ -152,14 +159,16 @@ def resolve_dataset(data: Path | None, dataset: str | None) -> str:
 def run_one(model: str, source: ClipSource, train: Callable[[], ClipSource], config: ProtocolConfig, *,
             cfg_scale: float, weights: Path | None, clips: int | None, jobs: int,
             predictions_dir: Path | None, extra: dict | None = None, threads: int | None = None,
-            check_configuration: Callable[[dict], None] | None = None, device: str = "cpu") -> EvalResult:
+            check_configuration: Callable[[dict], None] | None = None, device: str = "cpu",
+            batch: int = 1) -> EvalResult:
     """:func:`dyadbench.protocol.runner.evaluate` with the command line's options."""
     from dyadbench.protocol.runner import evaluate  # noqa: PLC0415
 
     options = ModelOptions(weights=weights, seed=config.seed, cfg_scale=cfg_scale, train_split=train,
                            device=device, dataset=source.dataset, extra=dict(extra or {}))
     return evaluate(model, source, config, options=options, clips=clips, jobs=jobs,
-                    predictions_dir=predictions_dir, threads=threads, check_configuration=check_configuration)
+                    predictions_dir=predictions_dir, threads=threads, check_configuration=check_configuration,
+                    batch=batch)
 
 
 def style_reference(source: ClipSource, style_from: str) -> str | object:
@@ -254,7 +263,7 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
                  history_agent: str, seed: int, cfg_scale: float, weights: Path | None, wav2vec: Path | None,
                  device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
                  dataset: str | None, train: Path | None,
-                 allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
+                 allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None, batch: int,
                  style_from: str | None, out: Path | None, force: bool) -> None:
     """Run MODEL through the progressive-context streaming protocol over one split and score it.
 
@@ -282,7 +291,7 @@ def eval_command(model: str, split: str | None, context: int, turn_seconds: floa
             extra["style_from"] = style_reference(source, style_from)
         result = run_one(model, source, train_split, config, cfg_scale=cfg_scale, weights=weights, clips=clips,
                          jobs=jobs, predictions_dir=staging / "predictions", extra=extra, threads=threads,
-                         device=device)
+                         device=device, batch=batch)
         result = predictions_at(result, out / "predictions")
         save_result(result, staging / "result.json", out / "result.json")
         write_per_clip(result, staging / "per_clip.csv")

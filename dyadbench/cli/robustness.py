@@ -68,7 +68,7 @@ def write_report(results: Path, out: Path) -> list[Path]:
 def robustness(models: str | None, split: str, context: int, levels: str, burst_s: float, seed: int,
                noise_scale: float | None, wav2vec: Path | None, data: Path | None, dataset: str | None,
                train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int, threads: int | None,
-               results: Path, out: Path, per_clip: bool, force: bool, table_only: bool) -> None:
+               batch: int, results: Path, out: Path, per_clip: bool, force: bool, table_only: bool) -> None:
     """Run TIMAR's robustness sweep for each MODEL and write the degradation table and plot.
 
     \b
@@ -102,7 +102,7 @@ def robustness(models: str | None, split: str, context: int, levels: str, burst_
                 path = result_path(results, name_, source.split, context, name, run_variant(config, 1.0))
                 run_or_send(path, name, source, train_split, config, cfg_scale=1.0, weights=None, clips=clips,
                             jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
-                            per_clip=per_clip)
+                            per_clip=per_clip, batch=batch)
         if isinstance(run_or_send, ClusterSweep):
             run_or_send.finish()
     for path in write_report(results, out):

@@ -96,16 +96,17 @@ def reuse_check(path: Path) -> Callable[[dict], None] | None:
     return check
 
 
-def rerun(run: RecordedRun, checker: Checker, jobs: int, threads: int | None) -> EvalResult:
+def rerun(run: RecordedRun, checker: Checker, jobs: int, threads: int | None, batch: int = 1) -> EvalResult:
     """Run a result file's :class:`~dyadbench.staleness.RecordedRun` again: its model (with the weights and
     train split it used), split, ``--clips`` (all clips when it ran them all), protocol settings and seed."""
     source = open_split(run.dataset, run.root, run.split)
     clips = None if run.clips is None or run.clips >= len(source) else run.clips
     return run_one(run.model, source, checker.train_split(run), run.config, cfg_scale=run.cfg_scale,
-                   weights=checker.weights(run), clips=clips, jobs=jobs, predictions_dir=None, threads=threads)
+                   weights=checker.weights(run), clips=clips, jobs=jobs, predictions_dir=None, threads=threads,
+                   batch=batch)
 
 
-def rerun_stale(out: Path, jobs: int, threads: int | None) -> None:
+def rerun_stale(out: Path, jobs: int, threads: int | None, batch: int = 1) -> None:
     """``sweep --stale``: re-run every stale result file under ``out`` and write it over the file (kept
     without per-clip rows when it had none)."""
     checker = Checker(generate=True)
@@ -117,7 +118,7 @@ def rerun_stale(out: Path, jobs: int, threads: int | None) -> None:
             continue
         click.echo(f"re-running {verdict.line()}")
         run = recorded_run(load_result(path))
-        result = rerun(run, checker, jobs, threads)
+        result = rerun(run, checker, jobs, threads, batch)
         written(result, path, run.per_clip)
         rerun_count += 1
     click.echo(f"{rerun_count} stale result file(s) of {len(files)} under {out} re-run")
@@ -160,14 +161,14 @@ def _csv(value: str, what: str) -> list[str]:
 @click.option("--stale", is_flag=True,
               help="Re-run only the result files under --out whose provenance no longer matches the current "
                    "code and data (the rows `dyadbench leaderboard` warns about), each with the settings it "
-                   "records, writing over the file. Takes only --out, --scheduler, --jobs and --threads.")
+                   "records, writing over the file. Takes only --out, --scheduler, --jobs, --threads and --batch.")
 @click.pass_context
 @scheduler_option
 def sweep(ctx: click.Context, models: str | None, splits: str | None, context_list: list[int], turn_seconds: float,
           tail: str, history_agent: str, seed: int, cfg_scale: float, weights: Path | None,
           wav2vec: Path | None, device: str, speech_norm: str, perturb: tuple, noise_scale: float | None, data: Path | None,
           dataset: str | None, train: Path | None, allow_train_overlap: bool, clips: int | None, jobs: int,
-          threads: int | None, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
+          threads: int | None, batch: int, out: Path, keep_predictions: Path | None, per_clip: bool, force: bool,
           stale: bool) -> None:
     """Evaluate every MODEL x SPLIT x CONTEXT and write one result file per run.
 
@@ -188,7 +189,7 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                               f"{', '.join(given)} cannot be given with it")
         check_cache()
         check_folder(out, f"--out {out}")
-        rerun_stale(out, jobs, threads)
+        rerun_stale(out, jobs, threads, batch)
         return
     if models is None:
         raise ConfigError("--models is required (or --stale to re-run the stale result files under --out)")
@@ -217,14 +218,14 @@ def sweep(ctx: click.Context, models: str | None, splits: str | None, context_li
                          if keep_predictions else None)
                 run_or_send(path, name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                             clips=clips, jobs=jobs, threads=threads, extra=wav2vec_extra(wav2vec), force=force,
-                            per_clip=per_clip, preds=preds, device=device)
+                            per_clip=per_clip, preds=preds, device=device, batch=batch)
     if isinstance(run_or_send, ClusterSweep):
         run_or_send.finish()
 
 
 def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConfig, *, cfg_scale: float,
                 weights: Path | None, clips: int | None, jobs: int, threads: int | None, extra: dict, force: bool,
-                per_clip: bool, preds: Path | None = None, device: str = "cpu") -> EvalResult | None:
+                per_clip: bool, preds: Path | None = None, device: str = "cpu", batch: int = 1) -> EvalResult | None:
     """One sweep run written to ``path``; skipped (None returned) when ``path`` holds a result of the same
     configuration and not ``force``; ``preds``: where to keep the predictions (None: not kept)."""
     check = reuse_check(path) if path.exists() and not force else None
@@ -232,7 +233,7 @@ def run_to_file(path: Path, name: str, source, train_split, config: ProtocolConf
         with kept_predictions(preds, force) as staging:
             result = run_one(name, source, train_split, config, cfg_scale=cfg_scale, weights=weights,
                              clips=clips, jobs=jobs, predictions_dir=staging, threads=threads,
-                             extra=extra, check_configuration=check, device=device)
+                             extra=extra, check_configuration=check, device=device, batch=batch)
     except Unchanged:
         click.echo(f"skip {path} (same configuration; --force re-runs)")
         return None

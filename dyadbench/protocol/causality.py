@@ -23,7 +23,7 @@ from dyadbench.datasets.base import DyadicClip, Participant
 from dyadbench.errors import ConfigError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import StreamingModel
-from dyadbench.protocol.streaming import stream_agent
+from dyadbench.protocol.streaming import stream_agent, stream_agents
 from dyadbench.seeding import rng
 
 
@@ -53,10 +53,12 @@ def perturb_after(clip: DyadicClip, first_frame: int, *, agent: str | None = Non
 
 
 def check_causal(model_factory: Callable[[], StreamingModel], clip: DyadicClip, agent: str,
-                 config: ProtocolConfig, turn: int) -> None:
+                 config: ProtocolConfig, turn: int, *, batched: bool = False) -> None:
     """Raise :class:`CausalityViolation` if outputs of turns 0..``turn`` change when later inputs change.
 
-    ``model_factory`` must return a fresh model (same weights, same options) on each call.
+    ``model_factory`` must return a fresh model (same weights, same options) on each call. ``batched``: the
+    original and the perturbed clip stream together through one model (``predict_turns``, two slots), so
+    the check also catches a batch whose streams read each other's inputs.
     """
     frames = config.frames_per_turn(clip.fps)
     num_turns = clip.num_frames // frames
@@ -66,12 +68,16 @@ def check_causal(model_factory: Callable[[], StreamingModel], clip: DyadicClip, 
     model = model_factory()
     if not isinstance(model, StreamingModel):
         raise ConfigError(f"{type(model).__name__} is not a StreamingModel; causality applies to streaming models")
-    reference = stream_agent(model, clip, agent, config).motion
     oracle = bool(model.info.oracle)
     changed = perturb_after(clip, (turn + 1) * frames, agent=None if oracle else agent,
                             agent_from=int(model.info.seed_frames), seed=config.seed)
     fixed_stats = {"stats_clip": clip} if config.speech_norm == "clip" else {}
-    perturbed = stream_agent(model_factory(), changed, agent, config, **fixed_stats).motion
+    if batched:
+        reference, perturbed = (out.motion for out in stream_agents(
+            model, [(clip, agent), (changed, agent, fixed_stats.get("stats_clip"))], config, batch=2))
+    else:
+        reference = stream_agent(model, clip, agent, config).motion
+        perturbed = stream_agent(model_factory(), changed, agent, config, **fixed_stats).motion
 
     upto = (turn + 1) * frames
     a, b = reference[:upto], perturbed[:upto]

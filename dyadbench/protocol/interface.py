@@ -2,7 +2,11 @@
 
 Streaming models implement :class:`StreamingModel`: the protocol (:mod:`dyadbench.protocol`) calls
 ``start_stream`` once per evaluated direction of a clip, then ``predict_turn`` once per turn with
-inputs it has sliced itself, so a model cannot read future frames. Full-sequence models implement
+inputs it has sliced itself, so a model cannot read future frames. Streaming many directions at once
+(``--batch``), it calls ``start_streams`` with the streams of free slots and ``predict_turns`` with the next
+turn of every open stream; the defaults run one shallow copy of the model per stream, so a model that only
+implements ``predict_turn`` streams in batches unchanged, and a model that batches its forward passes
+overrides both. Full-sequence models implement
 :class:`OfflineModel` and are run by the offline protocol (recorded as ``protocol = offline``).
 
 Models are created by factories registered in :data:`dyadbench.registry.MODELS`; a factory takes a
@@ -12,6 +16,8 @@ Models are created by factories registered in :data:`dyadbench.registry.MODELS`;
 from __future__ import annotations
 
 import abc
+import copy
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -92,6 +98,8 @@ class TurnInput:
     - ``user_speech_features`` / ``agent_speech_features`` ((h+1)·F·r, B): the speech features the
       dataset ships for that person (r rows per frame, e.g. Learning2Listen's 4 × 128-bin mel rows),
       over the same window; ``None`` when the dataset ships none (then use the waveform).
+    - ``stream``: the slot of the stream the turn belongs to in :meth:`StreamingModel.predict_turns`
+      (0 in single-stream runs).
     """
 
     turn: int
@@ -105,6 +113,7 @@ class TurnInput:
     agent_motion_oracle: np.ndarray | None = None
     user_speech_features: np.ndarray | None = None
     agent_speech_features: np.ndarray | None = None
+    stream: int = 0
 
     @property
     def current_user_motion(self) -> np.ndarray:
@@ -136,6 +145,24 @@ class StreamingModel(abc.ABC):
     @abc.abstractmethod
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
         """Agent motion of the current turn, shape (frames_per_turn, D), finite floats."""
+
+    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
+        """Start a stream in each given slot (what ``start_stream`` does for one stream); streams open in other
+        slots keep their state. Default: each slot gets a shallow copy of this model (the weights shared)
+        started with ``start_stream``."""
+        copies = self.__dict__.setdefault("_slot_models", {})
+        for slot, ctx in contexts.items():
+            copies[slot] = copy.copy(self)
+            copies[slot].__dict__.pop("_slot_models", None)  # a copy must not hold on to the other copies
+            copies[slot].start_stream(ctx)
+
+    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
+        """Agent motion of the current turn of several open streams (``turn.stream``: the slot, one turn per
+        slot), in the order given; each as ``predict_turn`` would give it for that stream alone, random
+        draws included (they come from each stream's own generator). Default: ``predict_turn`` of each
+        slot's copy in turn."""
+        copies = self.__dict__.get("_slot_models", {})
+        return [copies[turn.stream].predict_turn(turn) for turn in turns]
 
 
 class OfflineModel(abc.ABC):

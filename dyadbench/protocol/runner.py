@@ -25,11 +25,11 @@ import shutil
 import sys
 import tempfile
 import time
-from collections import OrderedDict
+from collections import OrderedDict, deque
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Callable
+from typing import Callable, Iterator
 
 import numpy as np
 from tqdm import tqdm
@@ -44,7 +44,7 @@ from dyadbench.protocol.noise_scale import resolve_noise_scale
 from dyadbench.protocol.offline import run_offline
 from dyadbench.protocol.perturbations import describe, perturbed_inputs
 from dyadbench.protocol.run_configuration import requested_configuration
-from dyadbench.protocol.streaming import StreamOutput, stream_agent
+from dyadbench.protocol.streaming import StreamOutput, stream_agent, stream_agents
 from dyadbench.protocol.train_split import bind_train_split, overlap_notes, train_record
 from dyadbench.provenance import split_digest
 from dyadbench.registry import DATASETS, MODELS
@@ -85,19 +85,48 @@ def run_direction(model: StreamingModel | OfflineModel, clip, agent: str, config
     return run_offline(model, clip, agent, config)
 
 
+def _streamed(clip, p, result: StreamOutput, keep_audio: bool) -> _Streamed:
+    partner = clip.partner_of(p.name)
+    return _Streamed(result, ScoreItem(
+        stem=result.stem, pred=result.motion, gt=np.asarray(p.motion, np.float32),
+        partner=np.asarray(partner.motion, np.float32) if partner is not None else None,
+        audio=np.asarray(p.audio, np.float32) if keep_audio else None, identity=p.identity,
+        fps=clip.fps, sample_rate=clip.sample_rate))
+
+
+def _seen(clip, agent: str, config: ProtocolConfig):
+    """What the model receives of ``clip`` when ``agent`` is generated (perturbed inputs, if any)."""
+    return perturbed_inputs(clip, agent, config.perturbations, config.seed, config.noise_scale)
+
+
 def _stream_clip(model, source: ClipSource, clip_id: str, config: ProtocolConfig, keep_audio: bool) -> list[_Streamed]:
     clip = source.load(clip_id)
-    out = []
-    for p in clip.agent_participants:
-        partner = clip.partner_of(p.name)
-        seen = perturbed_inputs(clip, p.name, config.perturbations, config.seed, config.noise_scale)
-        result = run_direction(model, seen, p.name, config)
-        out.append(_Streamed(result, ScoreItem(
-            stem=result.stem, pred=result.motion, gt=np.asarray(p.motion, np.float32),
-            partner=np.asarray(partner.motion, np.float32) if partner is not None else None,
-            audio=np.asarray(p.audio, np.float32) if keep_audio else None, identity=p.identity,
-            fps=clip.fps, sample_rate=clip.sample_rate)))
-    return out
+    return [_streamed(clip, p, run_direction(model, _seen(clip, p.name, config), p.name, config), keep_audio)
+            for p in clip.agent_participants]
+
+
+def _stream_clips_batched(model: StreamingModel, source: ClipSource, clip_ids: list[str], config: ProtocolConfig,
+                          keep_audio: bool, batch: int) -> Iterator[list[_Streamed]]:
+    """Yield, clip by clip in order, the streamed directions of ``clip_ids``, up to ``batch`` directions
+    (of consecutive clips) streamed together (:func:`~dyadbench.protocol.streaming.stream_agents`); clips are
+    read only as slots free up."""
+    opened: deque = deque()  # (clip, participants) in the order their directions were handed over
+
+    def directions():
+        for clip_id in clip_ids:
+            clip = source.load(clip_id)
+            opened.append((clip, clip.agent_participants))
+            for p in clip.agent_participants:
+                yield _seen(clip, p.name, config), p.name
+
+    done: list[_Streamed] = []
+    for result in stream_agents(model, directions(), config, batch):
+        clip, participants = opened[0]
+        done.append(_streamed(clip, participants[len(done)], result, keep_audio))
+        if len(done) == len(participants):
+            opened.popleft()
+            yield done
+            done = []
 
 
 _WORKER: dict = {}
@@ -115,20 +144,31 @@ def set_threads(threads: int) -> None:
 
 
 def _init_worker(model_name: str, options: ModelOptions, source: ClipSource, config: ProtocolConfig,
-                 keep_audio: bool, threads: int | None) -> None:
+                 keep_audio: bool, threads: int | None, batch: int) -> None:
     set_threads(threads or 1)  # workers share the machine: one thread each unless told otherwise
-    _WORKER.update(model=build_model(model_name, options), source=source, config=config, keep_audio=keep_audio)
+    _WORKER.update(model=build_model(model_name, options), source=source, config=config, keep_audio=keep_audio,
+                   batch=batch)
 
 
-def _worker_clip(clip_id: str) -> list[_Streamed]:
+def _worker_clips(clip_ids: list[str]) -> list[list[_Streamed]]:
     w = _WORKER
-    return _stream_clip(w["model"], w["source"], clip_id, w["config"], w["keep_audio"])
+    return list(_stream_clips(w["model"], w["source"], clip_ids, w["config"], w["keep_audio"], w["batch"]))
+
+
+def _stream_clips(model, source: ClipSource, clip_ids: list[str], config: ProtocolConfig, keep_audio: bool,
+                  batch: int) -> Iterator[list[_Streamed]]:
+    """Per clip, in order: one direction at a time (``batch`` 1, offline models) or ``batch`` together."""
+    if batch > 1 and isinstance(model, StreamingModel):
+        yield from _stream_clips_batched(model, source, clip_ids, config, keep_audio, batch)
+    else:
+        for clip_id in clip_ids:
+            yield _stream_clip(model, source, clip_id, config, keep_audio)
 
 
 def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, options: ModelOptions | None = None,
              clips: int | None = None, jobs: int = 1, predictions_dir: Path | None = None,
              progress: bool = True, threads: int | None = None,
-             check_configuration: Callable[[dict], None] | None = None) -> EvalResult:
+             check_configuration: Callable[[dict], None] | None = None, batch: int = 1) -> EvalResult:
     """Run ``model_name`` over ``source`` under ``config`` and score it (see module docstring).
 
     ``predictions_dir``: where ``<stem>.npy`` files go (None: a temporary folder, removed after scoring).
@@ -141,6 +181,9 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     clips (a model fitted on some of them is refused unless it allows overlap) and recorded in the result.
     ``check_configuration``: called with the run's :func:`requested_configuration` once the model is built,
     before any clip is streamed (an exception it raises stops the run; ``sweep`` uses it to skip unchanged runs).
+    ``batch``: directions of a streaming model streamed together (:func:`~dyadbench.protocol.streaming.stream_agents`;
+    per process with ``jobs > 1``). It changes no prediction (each stream keeps its own state and random
+    draws), so it is not part of the run's configuration.
     """
     started = time.perf_counter()
     ids = source.clip_ids()
@@ -181,7 +224,8 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     try:
         bar = tqdm(total=len(ids), desc=f"{model_name} {source.dataset}/{source.split} n={config.context}",
                    unit="clip", disable=not progress)
-        for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads):
+        for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads,
+                                    batch):
             for s in streamed:
                 atomic.save_npy(pred_dir / f"{s.output.stem}.npy", s.output.motion.astype(np.float32))
                 items.append(s.item)
@@ -286,11 +330,13 @@ def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int, opt
     return report, None
 
 
-def _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads):
-    """Yield, clip by clip in order, the streamed directions (in-process or in ``jobs`` workers)."""
+def _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads, batch):
+    """Yield, clip by clip in order, the streamed directions (in-process or in ``jobs`` workers, each streaming
+    runs of consecutive clips, ``batch`` directions together)."""
+    if batch < 1:
+        raise ConfigError(f"batch must be >= 1, got {batch}")
     if jobs <= 1 or len(ids) == 1:
-        for clip_id in ids:
-            yield _stream_clip(model, source, clip_id, config, keep_audio)
+        yield from _stream_clips(model, source, ids, config, keep_audio, batch)
         return
     try:
         pickle.dumps((options, source))
@@ -302,6 +348,9 @@ def _stream_all(model, model_name, options, source, ids, config, keep_audio, job
     # An error in a worker (a clip that cannot be read, a model that fails to build) is raised here as with
     # jobs=1 (dyadbench.workers.process_map).
     method = "spawn" if "torch" in sys.modules or sys.platform != "linux" else "fork"
-    yield from process_map(_worker_clip, ids, jobs=jobs, context=get_context(method), initializer=_init_worker,
-                           initargs=(model_name, options, source, config, keep_audio, threads),
-                           chunksize=max(1, min(16, len(ids) // (4 * jobs))))
+    size = max(1, min(16, len(ids) // (4 * jobs)), -(-batch // 2))  # about a batch of directions per task
+    runs = [ids[i:i + size] for i in range(0, len(ids), size)]
+    for streamed in process_map(_worker_clips, runs, jobs=jobs, context=get_context(method),
+                                initializer=_init_worker,
+                                initargs=(model_name, options, source, config, keep_audio, threads, batch)):
+        yield from streamed

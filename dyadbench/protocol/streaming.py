@@ -24,12 +24,13 @@ r rows per frame) are sliced over the same frames as the motion; they are ``None
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from dyadbench.datasets.base import DyadicClip, Participant
-from dyadbench.errors import InputError
+from dyadbench.errors import ConfigError, InputError
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import StreamContext, StreamingModel, TurnInput
 from dyadbench.seeding import derive_seed
@@ -80,52 +81,138 @@ def stream_context(clip: DyadicClip, agent: str, config: ProtocolConfig,
         agent_identity=agent_p.identity, speech_norm=config.speech_norm, **stats)
 
 
-def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig,
-                 stats_clip: DyadicClip | None = None) -> StreamOutput:
-    """Run ``model`` over one direction of ``clip`` (``agent`` generated, its partner the user);
-    ``stats_clip``: see :func:`stream_context`."""
-    ctx = stream_context(clip, agent, config, stats_clip)
-    stem = f"{clip.clip_id}_{agent}"
-    if ctx.num_turns == 0:
-        raise InputError(stem, f"clip has {clip.num_frames} frames, shorter than one turn "
-                               f"({ctx.frames_per_turn} frames); nothing to stream")
-    agent_p = clip.participant(agent)
-    partner = clip.partner_of(agent)
-    user_motion = partner.motion if partner else np.zeros((clip.num_frames, 0), np.float32)
-    oracle = bool(getattr(model.info, "oracle", False))
-    seed = int(getattr(model.info, "seed_frames", 0))  # seed window: turns entirely inside it get the GT
-    F, S, dim = ctx.frames_per_turn, ctx.samples_per_turn, clip.motion_layout.dim
+class _Direction:
+    """One stream's inputs (sliced turn by turn as the module docstring says) and the outputs so far."""
 
-    model.start_stream(ctx)
-    outputs: list[np.ndarray] = []
-    latencies: list[float] = []
-    for t in range(ctx.num_turns):
-        h = min(t, config.context)
+    def __init__(self, model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig,
+                 stats_clip: DyadicClip | None = None):
+        self.ctx = stream_context(clip, agent, config, stats_clip)
+        self.stem = f"{clip.clip_id}_{agent}"
+        if self.ctx.num_turns == 0:
+            raise InputError(self.stem, f"clip has {clip.num_frames} frames, shorter than one turn "
+                                        f"({self.ctx.frames_per_turn} frames); nothing to stream")
+        self.clip, self.config, self.name = clip, config, model.info.name
+        self.agent = clip.participant(agent)
+        self.partner = clip.partner_of(agent)
+        self.user_motion = self.partner.motion if self.partner else np.zeros((clip.num_frames, 0), np.float32)
+        self.oracle = bool(getattr(model.info, "oracle", False))
+        self.seed_frames = int(getattr(model.info, "seed_frames", 0))  # turns inside it get the GT
+        self.dim = clip.motion_layout.dim
+        self.outputs: list[np.ndarray] = []
+        self.latencies: list[float] = []
+
+    @property
+    def next_turn(self) -> int:
+        return len(self.outputs)
+
+    @property
+    def done(self) -> bool:
+        return len(self.outputs) == self.ctx.num_turns
+
+    def turn_input(self, stream: int = 0) -> TurnInput:
+        """The inputs of the next turn t: the window of h = min(t, n) history turns and the current one."""
+        t, F, S = self.next_turn, self.ctx.frames_per_turn, self.ctx.samples_per_turn
+        h = min(t, self.config.context)
         f0, f1 = (t - h) * F, (t + 1) * F
         s0, s1 = (t - h) * S, (t + 1) * S
-        turn = TurnInput(
+        agent_p, partner, outputs = self.agent, self.partner, self.outputs
+        return TurnInput(
             turn=t, history_turns=h, frames_per_turn=F, samples_per_turn=S,
-            user_motion=readonly_window(user_motion, f0, f1),
+            user_motion=readonly_window(self.user_motion, f0, f1),
             user_audio=readonly_window(partner.audio, s0, s1) if partner else np.zeros(0, np.float32),
             agent_audio=readonly_window(agent_p.audio, s0, s1),
             agent_history=(make_readonly(np.concatenate(outputs[t - h:t], axis=0) if h else
-                                     np.zeros((0, dim), np.float32))
-                           if config.history_agent == "outputs" else None),
-            agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if oracle or f1 <= seed else None,
+                                         np.zeros((0, self.dim), np.float32))
+                           if self.config.history_agent == "outputs" else None),
+            agent_motion_oracle=readonly_window(agent_p.motion, f0, f1) if self.oracle or f1 <= self.seed_frames
+            else None,
             user_speech_features=feature_window(partner, f0, f1) if partner else None,
             agent_speech_features=feature_window(agent_p, f0, f1),
+            stream=stream,
         )
+
+    def add(self, out: object, latency_s: float) -> None:
+        self.latencies.append(latency_s)
+        self.outputs.append(check_output(out, (self.ctx.frames_per_turn, self.dim),
+                                         f"{self.name} on {self.stem}, turn {self.next_turn}"))
+
+    def result(self) -> StreamOutput:
+        motion = np.concatenate(self.outputs, axis=0)
+        tail = self.clip.num_frames - motion.shape[0] if self.config.tail == "pad-last" else 0
+        if tail:
+            motion = np.concatenate([motion, np.repeat(motion[-1:], tail, axis=0)], axis=0)
+        return StreamOutput(stem=self.stem, motion=motion, turn_latency_s=self.latencies,
+                            num_turns=self.ctx.num_turns, frames_per_turn=self.ctx.frames_per_turn, tail_frames=tail)
+
+
+def stream_agent(model: StreamingModel, clip: DyadicClip, agent: str, config: ProtocolConfig,
+                 stats_clip: DyadicClip | None = None) -> StreamOutput:
+    """Run ``model`` over one direction of ``clip`` (``agent`` generated, its partner the user), one
+    ``predict_turn`` call per turn; ``stats_clip``: see :func:`stream_context`."""
+    direction = _Direction(model, clip, agent, config, stats_clip)
+    model.start_stream(direction.ctx)
+    while not direction.done:
+        turn = direction.turn_input()
         start = time.perf_counter()
         out = model.predict_turn(turn)
-        latencies.append(time.perf_counter() - start)
-        outputs.append(check_output(out, (F, dim), f"{model.info.name} on {stem}, turn {t}"))
+        direction.add(out, time.perf_counter() - start)
+    return direction.result()
 
-    motion = np.concatenate(outputs, axis=0)
-    tail = clip.num_frames - motion.shape[0] if config.tail == "pad-last" else 0
-    if tail:
-        motion = np.concatenate([motion, np.repeat(motion[-1:], tail, axis=0)], axis=0)
-    return StreamOutput(stem=stem, motion=motion, turn_latency_s=latencies, num_turns=ctx.num_turns,
-                        frames_per_turn=F, tail_frames=tail)
+
+def stream_agents(model: StreamingModel, directions: Iterable[tuple], config: ProtocolConfig,
+                  batch: int) -> Iterator[StreamOutput]:
+    """Stream many directions together, yielding their outputs in the order given.
+
+    ``directions``: (clip, agent) or (clip, agent, stats_clip) tuples (``stats_clip``: see
+    :func:`stream_context`).
+    Up to ``batch`` streams are open at once, each in its own slot: every step hands the next turn of each
+    open stream to one :meth:`~dyadbench.protocol.interface.StreamingModel.predict_turns` call; a stream that
+    has had its last turn hands its slot to the next direction (read from ``directions`` only then, so a
+    split is never held whole). Each turn's inputs are exactly those :func:`stream_agent` gives, and a
+    model keeps its state and random draws per stream, so the outputs equal :func:`stream_agent`'s (bit for
+    bit for models whose arithmetic does not depend on the batch). A turn's latency is the call's wall-clock
+    time divided by the turns it held.
+    """
+    if batch < 1:
+        raise ConfigError(f"batch must be >= 1, got {batch}")
+    pending = iter(enumerate(directions))
+    slots: dict[int, tuple[int, _Direction]] = {}
+    finished: dict[int, StreamOutput] = {}
+    emitted = 0
+
+    def fill(free: list[int]) -> None:
+        started = {}
+        for slot in free:
+            item = next(pending, None)
+            if item is None:
+                break
+            index, (clip, agent, *stats) = item
+            slots[slot] = (index, _Direction(model, clip, agent, config, *stats))
+            started[slot] = slots[slot][1].ctx
+        if started:
+            model.start_streams(started)
+
+    fill(list(range(batch)))
+    while slots:
+        order = sorted(slots)
+        turns = [slots[slot][1].turn_input(stream=slot) for slot in order]
+        start = time.perf_counter()
+        outs = list(model.predict_turns(turns))
+        share = (time.perf_counter() - start) / len(turns)
+        if len(outs) != len(turns):
+            raise InputError(model.info.name, f"predict_turns returned {len(outs)} outputs for {len(turns)} turns")
+        free = []
+        for slot, out in zip(order, outs):
+            index, direction = slots[slot]
+            direction.add(out, share)
+            if direction.done:
+                finished[index] = direction.result()
+                del slots[slot]
+                free.append(slot)
+        fill(free)
+        while emitted in finished:
+            yield finished.pop(emitted)
+            emitted += 1
 
 
 def check_output(out: object, shape: tuple[int, int], source: str) -> np.ndarray:

@@ -18,7 +18,7 @@ The arithmetic follows the improved-DDPM code used by masked autoregression with
 from __future__ import annotations
 
 import math
-from typing import Callable
+from typing import Callable, Sequence
 
 import numpy as np
 import torch
@@ -59,6 +59,13 @@ def _discretized_gaussian_log_likelihood(x: torch.Tensor, means: torch.Tensor, l
     cdf_delta = cdf_plus - cdf_min
     return torch.where(x < -0.999, log_cdf_plus,
                        torch.where(x > 0.999, log_one_minus_cdf_min, torch.log(cdf_delta.clamp(min=1e-12))))
+
+
+def _normal(shape: tuple[int, ...], generator: torch.Generator | Sequence[torch.Generator]) -> torch.Tensor:
+    """Standard normal noise of ``shape`` from one generator, or row i of it from ``generator[i]``."""
+    if isinstance(generator, torch.Generator):
+        return torch.randn(shape, generator=generator)
+    return torch.stack([torch.randn(shape[1:], generator=g) for g in generator])
 
 
 class GaussianDiffusion:
@@ -137,24 +144,26 @@ class GaussianDiffusion:
 
     @torch.no_grad()
     def sample(self, denoise: Callable[[torch.Tensor, int], torch.Tensor], shape: tuple[int, ...],
-               generator: torch.Generator, temperature: float = 1.0,
+               generator: torch.Generator | Sequence[torch.Generator], temperature: float = 1.0,
                device: torch.device | str = "cpu", clamp_variance: bool = True) -> torch.Tensor:
         """Ancestral sampling from pure noise; ``denoise(x_t, i)`` returns 2C channels for step i, whose
         network timestep is ``timestep_map[i]`` (every row of x_t is at the same step).
 
         All noise comes from ``generator`` in a fixed order (x_T first, then one draw per step with
-        t > 0), so equal seeds give equal samples whatever the caller's cache state.
+        t > 0), so equal seeds give equal samples whatever the caller's cache state. With a list of
+        generators the first dimension of ``shape`` is one per generator, each row drawn from its own in
+        that order, as if sampled alone.
 
         ``clamp_variance`` (default True) keeps v in [-1, 1]. The released code does not clamp; with a
         well-trained head v stays in that range and clamping changes nothing, but an under-trained head
         can predict v far outside it, and in the respaced process (where β and β̃ differ by orders of
         magnitude) the extrapolated variance explodes (σ of 10^6 seen at the 250 → 0 step).
         """
-        x = torch.randn(shape, generator=generator).to(device)
+        x = _normal(shape, generator).to(device)
         for i in reversed(range(self.num_steps)):
             mean, log_var, _ = self.p_mean_logvar(denoise(x, i), x, i, clamp_variance=clamp_variance)
             if i > 0:
-                noise = torch.randn(shape, generator=generator).to(device)
+                noise = _normal(shape, generator).to(device)
                 x = mean + torch.exp(0.5 * log_var) * noise * temperature
             else:
                 x = mean

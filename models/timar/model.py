@@ -23,6 +23,7 @@ identity statistics (:func:`with_motion_statistics`).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import torch
 from torch import nn
@@ -264,33 +265,38 @@ class TimarModel(nn.Module):
 
     # --- sampling ------------------------------------------------------------------------------------
     @torch.no_grad()
-    def sample_frames(self, cond: torch.Tensor, generator: torch.Generator, cfg_scale: float = 1.0,
-                      temperature: float = 1.0, clamp_variance: bool = True) -> torch.Tensor:
+    def sample_frames(self, cond: torch.Tensor, generator: torch.Generator | Sequence[torch.Generator],
+                      cfg_scale: float = 1.0, temperature: float = 1.0, clamp_variance: bool = True) -> torch.Tensor:
         """Agent frames (F, 56), original units, from conditions (1, F, D), or (2, F, D) = (conditional,
         unconditional).
 
         With guidance the x0 prediction is ``u + s·(c − u)`` and the variance that of the
         conditional branch; with one condition row (s = 1) the head runs once per step.
         ``clamp_variance`` keeps the variance interpolation in its range [-1, 1] (see
-        :meth:`GaussianDiffusion.sample`).
+        :meth:`GaussianDiffusion.sample`). Several streams at once: ``cond`` (S, branches, F, D) with a list
+        of S generators gives (S, F, 56), each stream's noise drawn from its own generator.
         """
-        frames = cond.shape[1]
+        streams = cond.shape[0] if cond.dim() == 4 else 1
+        shape = (streams,) if cond.dim() == 4 else ()
+        cond = cond.flatten(0, 1) if cond.dim() == 4 else cond  # (streams·branches, F, D), stream-major
+        branches, frames = cond.shape[0] // streams, cond.shape[1]
         channels = self.cfg.motion_dim
         embedded = self.head.cond_embed(cond.reshape(cond.shape[0] * frames, -1))
         timesteps = self.sample_diffusion.timestep_map.to(cond.device)
-        # every step's modulation in one pass: (steps, branches·frames, ·)
+        # every step's modulation in one pass: (steps, streams·branches·frames, ·)
         modulation = self.head.modulation(self.head.time_embed(timesteps)[:, None] + embedded)
-        if cond.shape[0] == 1:
+        if branches == 1:
             def denoise(x: torch.Tensor, i: int) -> torch.Tensor:
-                return self.head.denoise_modulated(x, modulation.at(i))
+                return self.head.denoise_modulated(x.reshape(-1, channels), modulation.at(i)).view(*x.shape[:-1], -1)
         else:
             def denoise(x: torch.Tensor, i: int) -> torch.Tensor:
-                out = self.head.denoise_modulated(torch.cat([x, x]), modulation.at(i))
-                c, u = out[:frames], out[frames:]
-                guided = u[:, :channels] + cfg_scale * (c[:, :channels] - u[:, :channels])
-                return torch.cat([guided, c[:, channels:]], dim=-1)
+                each = x.reshape(streams, 1, frames, channels).expand(-1, 2, -1, -1).reshape(-1, channels)
+                out = self.head.denoise_modulated(each, modulation.at(i)).view(streams, 2, frames, -1)
+                c, u = out[:, 0], out[:, 1]
+                guided = u[..., :channels] + cfg_scale * (c[..., :channels] - u[..., :channels])
+                return torch.cat([guided, c[..., channels:]], dim=-1).view(*x.shape[:-1], -1)
 
-        x = self.sample_diffusion.sample(denoise, (frames, channels), generator, temperature, cond.device,
+        x = self.sample_diffusion.sample(denoise, (*shape, frames, channels), generator, temperature, cond.device,
                                          clamp_variance)
         return self.denormalize_motion(x)
 
