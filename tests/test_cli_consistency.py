@@ -40,32 +40,92 @@ def test_cfg_scale_is_refused_for_models_without_guidance(capsys, tmp_path):
     assert [e.name for e in MODELS.entries.values() if "guidance" in e.tags] == ["timar", "timar-stream"]
 
 
-@pytest.mark.parametrize("command, alias, option, dest, value, parsed", [
-    (("train", "sfms-tokenizer"), "--root", "--data", "root", "l2l", Path("l2l")),
-    (("train", "sfms"), "--batch", "--batch-size", "batch", "4", 4),
-    (("train", "stygazetalk-style"), "--batch", "--batch-size", "batch", "8", 8),
-    (("train", "stygazetalk"), "--batch", "--batch-size", "batch", "4", 4),
-])
-def test_older_spellings_are_hidden_and_still_work(command, alias, option, dest, value, parsed):
-    group = cli
+#: the options each train command requires (the canonical spellings)
+REQUIRED = {"sfms-tokenizer": ["--export", "x.pt"], "sfms": ["--export", "x.pt", "--tokenizer", __file__],
+            "stygazetalk-style": ["--export", "x.pt"], "stygazetalk": ["--export", "x.pt"]}
+#: train command -> its spellings of the weights file and the resumable run folder (None: it has none)
+OUTPUTS = {"timar": ("--export", "--run-dir"), "timar-stream": ("--export", "--run-dir"),
+           "dualtalk": ("--export", "--run-dir"), "sfms-tokenizer": ("--export", None), "sfms": ("--export", None),
+           "stygazetalk-style": ("--export", None), "stygazetalk": ("--export", None)}
+
+
+def _train_command(name: str) -> click.Command:
     ctx = click.Context(cli)
-    for name in command:
-        group = group.get_command(ctx, name)
-    base = ["--out", "x.pt"] + (["--tokenizer", __file__] if command[-1] == "sfms" else [])
-    assert group.make_context(group.name, [*base, alias, value]).params[dest] == parsed
-    assert group.make_context(group.name, [*base, option, value]).params[dest] == parsed
-    assert group.make_context(group.name, base).params[dest] is None
-    help_text = CliRunner().invoke(cli, [*command, "--help"]).output
+    return cli.get_command(ctx, "train").get_command(ctx, name)
+
+
+def _without(args: list[str], option: str) -> list[str]:
+    """``args`` (option, value pairs) without ``option`` and its value."""
+    pairs = [args[i:i + 2] for i in range(0, len(args), 2)]
+    return [x for pair in pairs if pair[0] != option for x in pair]
+
+
+@pytest.mark.parametrize("name, alias, option, dest, value, parsed", [
+    ("sfms-tokenizer", "--root", "--data", "root", "l2l", Path("l2l")),
+    ("sfms", "--batch", "--batch-size", "batch", "4", 4),
+    ("stygazetalk-style", "--batch", "--batch-size", "batch", "8", 8),
+    ("stygazetalk", "--batch", "--batch-size", "batch", "4", 4),
+    # --out keeps its old meaning per command: the run folder (timar, timar-stream, dualtalk) ...
+    ("timar", "--out", "--run-dir", "run_dir", "runs/r", Path("runs/r")),
+    ("timar-stream", "--out", "--run-dir", "run_dir", "runs/r", Path("runs/r")),
+    ("dualtalk", "--out", "--run-dir", "run_dir", "runs/r", Path("runs/r")),
+    # ... or the checkpoint file (sfms, stygazetalk)
+    ("sfms-tokenizer", "--out", "--export", "export", "tok.pt", Path("tok.pt")),
+    ("sfms", "--out", "--export", "export", "sfms.pt", Path("sfms.pt")),
+    ("stygazetalk-style", "--out", "--export", "export", "se.pt", Path("se.pt")),
+    ("stygazetalk", "--out", "--export", "export", "g.pt", Path("g.pt")),
+])
+def test_older_spellings_are_hidden_and_still_work(name, alias, option, dest, value, parsed, capsys):
+    command = _train_command(name)
+    base = _without(REQUIRED.get(name, []), option)
+    capsys.readouterr()
+    assert command.make_context(name, [*base, alias, value]).params[dest] == parsed
+    assert capsys.readouterr().err == f"note: {alias} is deprecated, use {option} (same meaning)\n"
+    assert command.make_context(name, [*base, option, value]).params[dest] == parsed
+    assert capsys.readouterr().err == ""
+    if option in REQUIRED.get(name, []):
+        with pytest.raises(click.MissingParameter) as missing:
+            command.make_context(name, base)
+        assert missing.value.format_message() == f"Missing option '{option}'."
+    else:
+        default = next(p for p in command.params if p.name == dest).default
+        assert command.make_context(name, base).params[dest] == default
+    help_text = CliRunner().invoke(cli, ["train", name, "--help"]).output
     assert option in help_text and f"{alias} " not in help_text
 
 
-def test_every_train_command_spells_data_root_and_batch_size_alike():
+@pytest.mark.parametrize("name", list(OUTPUTS))
+def test_train_help_names_the_weights_file_and_run_folder_alike(name):
+    help_text = CliRunner().invoke(cli, ["train", name, "--help"]).output
+    export, run_dir = OUTPUTS[name]
+    assert re.search(rf"^\s+{export} FILE\s", help_text, re.M), help_text
+    assert (re.search(r"^\s+--run-dir DIRECTORY\s", help_text, re.M) is not None) == (run_dir is not None)
+    assert "--out " not in help_text
+
+
+def test_every_train_command_spells_data_root_batch_size_and_outputs_alike():
     ctx = click.Context(cli)
     train = cli.get_command(ctx, "train")
+    assert set(train.list_commands(ctx)) == set(OUTPUTS)
     for name in train.list_commands(ctx):
         opts = {o for p in train.get_command(ctx, name).params if not getattr(p, "hidden", False) for o in p.opts}
-        assert "--root" not in opts and "--batch" not in opts, name
-        assert "--data" in opts, name
+        assert not opts & {"--root", "--batch", "--out"}, name
+        assert {"--data", "--export"} <= opts, name
+
+
+def test_old_out_spelling_trains_the_sfms_tokenizer(tmp_path, monkeypatch):
+    """A whole (3-step) run under the old spelling writes the checkpoint where ``--out`` said, with the note."""
+    from dyadbench.synth.corpus import make_clips
+    from models.sfms import cli as sfms_cli
+
+    train, val = make_clips("train", 2, duration_s=6.0), make_clips("val", 1, duration_s=6.0)
+    monkeypatch.setattr(sfms_cli, "load_split_clips", lambda *a, **k: (train, val, {"dataset": "generated"}))
+    small = ["--set", "width=32", "--set", "heads=2", "--set", "ffn=64", "--set", "pe_dim=8", "--steps", "3",
+             "--batch-size", "4", "--val-windows", "8", "--keyframes", "5"]
+    res = CliRunner().invoke(cli, ["train", "sfms-tokenizer", *small, "--out", str(tmp_path / "tok.pt")])
+    assert res.exit_code == 0, res.output
+    assert "note: --out is deprecated, use --export (same meaning)" in res.stderr
+    assert (tmp_path / "tok.pt").is_file() and (tmp_path / "tok.history.json").is_file()
 
 
 def test_split_help_lists_every_dataset_and_matches_the_adapters():

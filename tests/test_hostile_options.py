@@ -70,7 +70,9 @@ def test_out_of_range_values_are_usage_errors_before_any_work(path, command, opt
                                                               monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)  # a default output folder (e.g. runs/) would appear here
     out = tmp_path / "written.pt"
-    args = [option, value] + (["--out", str(out)] if any("--out" in p.opts for p in command.params) else [])
+    output = [o for p in command.params if not getattr(p, "hidden", False)
+              for o in p.opts if o in ("--out", "--export")]
+    args = [option, value] + ([output[0], str(out)] if output else [])
     with pytest.raises(SystemExit) as exc:
         if path[0] in SCRIPTS:
             command.main(args=args, prog_name=path[0], standalone_mode=True)
@@ -85,7 +87,7 @@ def test_out_of_range_values_are_usage_errors_before_any_work(path, command, opt
 def test_sfms_tokenizer_negative_steps_writes_no_checkpoint(tmp_path, capsys):
     out = tmp_path / "tok.pt"
     with pytest.raises(SystemExit) as exc:
-        main(["train", "sfms-tokenizer", "--steps", "-1", "--out", str(out)])
+        main(["train", "sfms-tokenizer", "--steps", "-1", "--export", str(out)])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and "'--steps': -1 is not in the range x>=1" in err
     assert not out.exists() and not out.with_suffix(".history.json").exists()
@@ -107,7 +109,7 @@ def test_config_overrides_outside_their_domain_are_refused(command, override, me
     out = tmp_path / "model.pt"
     extra = ["--tokenizer", str(_dummy(tmp_path))] if command == "sfms" else []
     with pytest.raises(SystemExit) as exc:
-        main(["train", command, "--set", override, "--out", str(out), *extra])
+        main(["train", command, "--set", override, "--export", str(out), *extra])
     err = capsys.readouterr().err
     assert exc.value.code == 2 and err.startswith(f"error: {message}")
     assert len(err.strip().splitlines()) == 1 and "Traceback" not in err
@@ -132,7 +134,7 @@ def test_a_validation_fraction_that_leaves_no_training_clip_is_refused_before_tr
     out = tmp_path / "tok.pt"
     with pytest.raises(SystemExit) as exc:
         main(["train", "sfms-tokenizer", "--dataset", "dualtalk", "--data", str(two_clip_root), "--val-frac", "0.9",
-              "--out", str(out)])
+              "--export", str(out)])
     err = capsys.readouterr().err
     assert exc.value.code == 2
     assert err.strip() == "error: --val-frac 0.9 holds out all 2 clips; none is left to train on"

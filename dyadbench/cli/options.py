@@ -107,7 +107,8 @@ def deprecated_alias(alias: str, option: str, dest: str, **kwargs: Any) -> Calla
     """A hidden option ``alias`` that still works as ``option`` (its value goes to the parameter ``dest``),
     with a note on stderr naming the spelling to use. Older spellings stay valid this way, so documented
     commands and the commands recorded in checkpoints run unchanged, while ``--help`` shows one name per
-    concept (data root ``--data``, batch size ``--batch-size``)."""
+    concept (data root ``--data``, batch size ``--batch-size``, weights file ``--export``, resumable run
+    folder ``--run-dir``). An option that an alias can supply is made required with :func:`required`."""
 
     def forward(ctx: click.Context, param: click.Parameter, value: Any) -> None:
         if value is not None:
@@ -116,6 +117,15 @@ def deprecated_alias(alias: str, option: str, dest: str, **kwargs: Any) -> Calla
 
     return click.option(alias, f"{dest}_alias", default=None, hidden=True, expose_value=False, callback=forward,
                         **kwargs)
+
+
+def required(ctx: click.Context, param: click.Parameter, value: Any) -> Any:
+    """Click callback of a required option that a :func:`deprecated_alias` may supply instead: click checks
+    ``required=True`` before it sees an alias given on the command line, so the check is made here (the
+    option is missing when neither it nor its alias was given)."""
+    if value is None and ctx.params.get(param.name) is None:
+        raise click.MissingParameter(ctx=ctx, param=param)
+    return value
 
 
 #: Registry tag (:data:`dyadbench.registry.MODELS`) of the models with classifier-free guidance.

@@ -9,7 +9,7 @@ from pathlib import Path
 import click
 
 from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
-from dyadbench.cli.options import POSITIVE, SEED
+from dyadbench.cli.options import POSITIVE, SEED, deprecated_alias
 
 
 @click.command("dualtalk")
@@ -27,15 +27,17 @@ from dyadbench.cli.options import POSITIVE, SEED
 @click.option("--feature-dim", type=click.IntRange(min=2), default=None, help="F [default: tiny's, 64].")
 @click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of initialisation, windows, dropout.")
 @click.option("--save-every", type=click.IntRange(min=1), default=500, show_default=True,
-              help="Rewrite <out>/checkpoint.pt every N steps.")
-@click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=Path("runs/dualtalk-tiny"),
-              show_default=True, help="Run folder for checkpoint.pt.")
+              help="Rewrite <run-dir>/checkpoint.pt every N steps.")
+@click.option("--run-dir", type=click.Path(file_okay=False, path_type=Path), default=Path("runs/dualtalk-tiny"),
+              show_default=True, help="Run folder for checkpoint.pt (rewritten every --save-every steps).")
+@deprecated_alias("--out", "--run-dir", "run_dir", type=click.Path(file_okay=False, path_type=Path))
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None,
-              help="Also write the final checkpoint to this file (e.g. to ship or pass to --weights).")
+              help="Weights file: also write the final checkpoint to this file (e.g. to ship or pass to "
+                   "`dyadbench eval --weights`).")
 @click.option("--device", default="cpu", show_default=True, help="cpu or cuda.")
-def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, steps: int, batch_size: int, lr: float, min_seconds: int,
-                   max_seconds: int, feature_dim: int | None, seed: int, save_every: int, out: Path,
-                   export: Path | None, device: str) -> None:
+def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, steps: int, batch_size: int, lr: float,
+                   min_seconds: int, max_seconds: int, feature_dim: int | None, seed: int, save_every: int,
+                   run_dir: Path, export: Path | None, device: str) -> None:
     """Train the log-mel DualTalk (tiny) on random 1-8 s windows; released loss, Adam.
 
     \b
@@ -48,7 +50,7 @@ def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, st
     from models.dualtalk.train import TrainSettings, train_dualtalk_model  # noqa: PLC0415
 
     check_cache()
-    check_folder(out, f"--out {out}")
+    check_folder(run_dir, f"--run-dir {run_dir}")
     if export is not None:
         check_file(export, f"--export {export}")
     cfg = preset("tiny", **({"feature_dim": feature_dim} if feature_dim else {}))
@@ -56,4 +58,4 @@ def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, st
     settings = TrainSettings(steps=steps, batch_size=batch_size, lr=lr, min_seconds=min_seconds,
                              max_seconds=max_seconds, seed=seed, save_every=save_every, device=device,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))
-    click.echo(f"checkpoint: {train_dualtalk_model(cfg, source, out, settings, export=export)}")
+    click.echo(f"checkpoint: {train_dualtalk_model(cfg, source, run_dir, settings, export=export)}")

@@ -15,7 +15,7 @@ import torch
 from tqdm import tqdm
 
 from dyadbench import atomic
-from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real
+from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real, required
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
@@ -96,7 +96,10 @@ def _common(f):
         click.option("--threads", type=COUNT, default=1, show_default=True,
                      help="torch CPU threads (1 is fastest on a shared, busy CPU)."),
         click.option("--device", default="cpu", show_default=True, help="cpu or cuda (one GPU per process)."),
-        click.option("--out", type=click.Path(path_type=Path), required=True, help="Checkpoint file to write."),
+        click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
+                     help="Checkpoint file to write (the weights to ship or pass to `dyadbench eval --weights`; "
+                          "its training history goes beside it as <name>.history.json). Required."),
+        deprecated_alias("--out", "--export", "export", type=click.Path(dir_okay=False, path_type=Path)),
     ]
     for option in reversed(options):
         f = option(f)
@@ -109,8 +112,8 @@ def _overrides(overrides: tuple[str, ...], steps: int | None, batch: int | None)
     return out
 
 
-def _write_log(out: Path, history: dict) -> Path:
-    return atomic.write_json(out.with_suffix(".history.json"), history)
+def _write_log(export: Path, history: dict) -> Path:
+    return atomic.write_json(export.with_suffix(".history.json"), history)
 
 
 @click.command("sfms-tokenizer")
@@ -120,15 +123,15 @@ def _write_log(out: Path, history: dict) -> Path:
               help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
 @click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")
 def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
-                    device, out, keyframes, keyframe_mode, quantizer) -> None:
+                    device, export, keyframes, keyframe_mode, quantizer) -> None:
     """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
 
     \b
     Example (the shipped tiny tokenizer):
-      dyadbench train sfms-tokenizer --config tiny --out sfms-tok.pt
+      dyadbench train sfms-tokenizer --config tiny --export sfms-tok.pt
     """
     check_cache()
-    check_file(out, f"--out {out}")
+    check_file(export, f"--export {export}")
     torch.set_num_threads(threads)
     extra = _overrides(overrides, steps, batch)
     extra.update({k: v for k, v in (("keyframes", keyframes), ("keyframe_mode", keyframe_mode),
@@ -149,10 +152,10 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
             meta = {"model": TOKENIZER_MODEL, "preset": preset, "seed": seed, "data": describe,
                     "best_val_mse_z": history["best_val_mse_z"], "best_step": history["best_step"],
                     "train_seconds": history["train_seconds"], "world_size": world.size, "val": history["val"]}
-            save_checkpoint(out, model_state=model.state_dict(), config={"tokenizer": to_dict(cfg)}, meta=meta)
-            log = _write_log(out, history)
+            save_checkpoint(export, model_state=model.state_dict(), config={"tokenizer": to_dict(cfg)}, meta=meta)
+            log = _write_log(export, history)
             click.echo(f"tokenizer: best validation MSE {history['best_val_mse_z']:.4f} (z-space) at step "
-                       f"{history['best_step']}, {history['train_seconds']:.0f} s -> {out} (history {log})")
+                       f"{history['best_step']}, {history['train_seconds']:.0f} s -> {export} (history {log})")
     finally:
         close_world(world)
 
@@ -162,16 +165,16 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
 @click.option("--tokenizer", "tokenizer_path", type=click.Path(path_type=Path, exists=True, dir_okay=False),
               required=True, help="Stage-1 checkpoint from `dyadbench train sfms-tokenizer`.")
 def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
-                    device, out, tokenizer_path) -> None:
+                    device, export, tokenizer_path) -> None:
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
 
     \b
     Example (the shipped tiny model; one command line):
       dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
-          --out models/sfms/checkpoints/sfms-tiny.pt
+          --export models/sfms/checkpoints/sfms-tiny.pt
     """
     check_cache()
-    check_file(out, f"--out {out}")
+    check_file(export, f"--export {export}")
     torch.set_num_threads(threads)
     if preset not in PREDICTOR_PRESETS:
         raise ConfigError(f"unknown config {preset!r} (known: {', '.join(PREDICTOR_PRESETS)})")
@@ -195,10 +198,10 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
                     "best_val_ce": history["best_val_ce"],
                     "best_step": history["best_step"], "train_seconds": history["train_seconds"],
                     "world_size": world.size, "val": history["val"]}
-            save_checkpoint(out, model_state=model.state_dict(), config=model.config(), meta=meta)
-            log = _write_log(out, history)
+            save_checkpoint(export, model_state=model.state_dict(), config=model.config(), meta=meta)
+            log = _write_log(export, history)
             last = history["val"][-1]
             click.echo(f"predictor: best validation weighted CE {history['best_val_ce']:.3f} (unigram "
-                       f"{last['unigram_ce']:.3f}), {history['train_seconds']:.0f} s -> {out} (history {log})")
+                       f"{last['unigram_ce']:.3f}), {history['train_seconds']:.0f} s -> {export} (history {log})")
     finally:
         close_world(world)

@@ -9,7 +9,7 @@ from typing import Callable
 
 import click
 
-from dyadbench.cli.options import SEED, deprecated_alias, real
+from dyadbench.cli.options import SEED, deprecated_alias, real, required
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
 from models.stygazetalk.config import CHECKPOINT_SELECTIONS
@@ -52,11 +52,13 @@ def _overrides(base, **values):
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Checkpoint file to write (atomically).")
+@click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
+              help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
+                   "--weights`). Required.")
+@deprecated_alias("--out", "--export", "export", type=click.Path(dir_okay=False, path_type=Path))
 def train_style_encoder(config_name: str, dataset: str, root: Path | None, train_split: str, val_split: str,
                         steps: int | None, batch: int | None, seed: int | None, val_every: int, threads: int,
-                        out: Path) -> None:
+                        export: Path) -> None:
     """Stage 1: train the contrastive (NT-Xent) style encoder on adjacent windows of one speaker.
 
     Prints the validation NT-Xent curve and the top-1 same-speaker retrieval accuracy of the selected
@@ -71,7 +73,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
                                                 train_style_encoder as fit)
 
     check_cache()
-    check_file(out, f"--out {out}")
+    check_file(export, f"--export {export}")
     torch.set_num_threads(threads)
     cfg = _overrides(get_style_config(config_name), steps=steps, batch_pairs=batch, seed=seed)
     min_frames = 2 * cfg.window + cfg.pair_gap_max
@@ -85,7 +87,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
             "steps": cfg.steps, "best_step": log.best_step, "best_val_nt_xent": log.best_val,
             "train_seconds": log.seconds, "val_retrieval_top1": acc, "val_retrieval_chance": chance,
             "curve": log.curve()}
-    path = save_style_model(out, model, meta)
+    path = save_style_model(export, model, meta)
     cross, cross_chance = cross_session_retrieval(model, val, train)
     click.echo(f"style encoder {cfg.name}: best val NT-Xent {log.best_val:.4f} at step {log.best_step} "
                f"({log.seconds:.0f} s); val retrieval top-1 {acc:.3f} (chance {chance:.3f}); cross-session "
@@ -114,12 +116,14 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
               help="Override which weights are kept: lowest validation L_gen (preset, D27), lowest validation "
                    "MSE alone (val-mse: one criterion whatever --lam), or the final step.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
-              help="Checkpoint file to write (atomically).")
+@click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
+              help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
+                   "--weights`). Required.")
+@deprecated_alias("--out", "--export", "export", type=click.Path(dir_okay=False, path_type=Path))
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
                     val_split: str, steps: int | None, batch: int | None, lam: float | None,
                     rollout_prob: float | None, seed: int | None, selection: str | None, threads: int,
-                    out: Path) -> None:
+                    export: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The kept weights are those with the lowest teacher-forced validation loss (the preset's selection),
@@ -134,7 +138,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.train_generator import train_generator as fit
 
     check_cache()
-    check_file(out, f"--out {out}")
+    check_file(export, f"--export {export}")
     torch.set_num_threads(threads)
     cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam,
                      rollout_prob=rollout_prob, seed=seed, checkpoint_selection=selection).validate()
@@ -156,7 +160,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
             "best_val_loss": log.best_val, "step0_val_loss": log.step0_val_loss, "train_seconds": log.seconds,
             "train_windows": log.train_windows,
             "curve": log.curve()}
-    path = save_system(out, system, meta)
+    path = save_system(export, system, meta)
     kept = f"best step {log.best_step}" if cfg.checkpoint_selection != "last" else \
         f"final weights kept; best step was {log.best_step}"
     tracked = "MSE" if cfg.checkpoint_selection == "val-mse" else "loss"

@@ -11,7 +11,7 @@ from typing import Callable
 import click
 
 from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
-from dyadbench.cli.options import COUNT, NON_NEGATIVE, POSITIVE, SEED
+from dyadbench.cli.options import COUNT, NON_NEGATIVE, POSITIVE, SEED, deprecated_alias
 from models.timar.config import MOTION_NORMS, PRESETS
 
 OPTIONS = [
@@ -39,14 +39,15 @@ OPTIONS = [
                  help="Start of consecutive 8-turn training windows, in turns (8 = non-overlapping)."),
     click.option("--seed", type=SEED, default=0, show_default=True,
                  help="Seed of initialisation, data order, masks and diffusion noise (recorded)."),
-    click.option("--out", type=click.Path(file_okay=False, path_type=Path), default=None,
-                 help="Run folder for checkpoint.pt (resumable, rewritten every epoch) "
+    click.option("--run-dir", type=click.Path(file_okay=False, path_type=Path), default=None,
+                 help="Run folder for checkpoint.pt (resumable with --resume, rewritten every epoch) "
                       "[default: runs/<model>-<config>]."),
+    deprecated_alias("--out", "--run-dir", "run_dir", type=click.Path(file_okay=False, path_type=Path)),
     click.option("--resume", type=click.Path(exists=True, dir_okay=False, path_type=Path), default=None,
                  help="Continue from this checkpoint.pt (same config and data, checked by digest)."),
     click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None,
-                 help="At the end, also write the EMA weights alone (no training state) to this file, "
-                      "e.g. to ship or pass to `dyadbench eval --weights`."),
+                 help="Weights file: at the end, write the EMA weights alone (no training state) to this "
+                      "file, e.g. to ship or pass to `dyadbench eval --weights`."),
     click.option("--device", default="cpu", show_default=True,
                  help="cpu or cuda (under torchrun each process takes cuda:LOCAL_RANK)."),
     click.option("--wav2vec-weights", type=click.Path(exists=True, file_okay=False), default=None,
@@ -60,15 +61,15 @@ def _with_options(f: Callable) -> Callable:
 
 def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | None, dataset: str | None,
          clips: int | None, epochs: int, batch_size: int | None, lr: float | None, warmup_epochs: float,
-         stride_turns: int, seed: int, out: Path | None, resume: Path | None, export: Path | None, device: str,
-         wav2vec_weights: str | None) -> None:
+         stride_turns: int, seed: int, run_dir: Path | None, resume: Path | None, export: Path | None,
+         device: str, wav2vec_weights: str | None) -> None:
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
 
-    out = out or Path("runs") / f"{MODEL_NAMES[variant]}-{config_name}"
+    run_dir = run_dir or Path("runs") / f"{MODEL_NAMES[variant]}-{config_name}"
     check_cache()
-    check_folder(out, f"--out {out}")
+    check_folder(run_dir, f"--run-dir {run_dir}")
     if export is not None:
         check_file(export, f"--export {export}")
     cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
@@ -76,7 +77,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, lr=lr, warmup_epochs=warmup_epochs, seed=seed,
                              stride_turns=stride_turns, device=device, wav2vec_weights=wav2vec_weights,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))
-    path = train_timar_model(cfg, source, out, settings, resume=resume, export=export)
+    path = train_timar_model(cfg, source, run_dir, settings, resume=resume, export=export)
     click.echo(f"checkpoint: {path}")
 
 
