@@ -11,12 +11,13 @@ from baselines.retrieval import build_nn_retrieval
 from dyadbench.cli import cli
 from dyadbench.datasets import l2l as layout
 from dyadbench.errors import InputError
-from dyadbench.metrics.l2l import L2LParams, keys, split_metrics
+from dyadbench.metrics.l2l import L2LParams, keys, partner_keys, split_metrics
 from dyadbench.motion import l2l_to_flame56
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.runner import evaluate, open_dataset_split
 from dyadbench.protocol.streaming import stream_agent
+from dyadbench.results import load_result
 from dyadbench.scoring.l2l import score_arrays, score_paths
 from dyadbench.scoring.report import ScoreItem
 from dyadbench.synth.l2l_writer import resample, write_l2l_split
@@ -171,15 +172,85 @@ def test_suite_values_by_hand_for_centred_and_mirrored_predictions():
         assert metrics[f"var_{c}"] == pytest.approx(4 * metrics[f"var_gt_{c}"], rel=1e-12)
 
 
-def test_score_arrays_excludes_nan_and_needs_the_speaker():
+def test_score_arrays_excludes_nan_and_scores_without_the_speaker():
     gts, speakers = _sequences(3, n=4)
     preds = [g.copy() for g in gts]
     preds[1][3, 4] = np.nan
     report = score_arrays([ScoreItem(f"w{i}", p, g, a) for i, (p, g, a) in enumerate(zip(preds, gts, speakers))])
     assert report.n_scored == 3 and report.excluded[0]["clip"] == "w1"
     assert report.config["parameters"]["si_k"] == {"exp": 15, "pose": 9, "jaw": 9}
-    with pytest.raises(InputError, match="speaker"):
-        score_arrays([ScoreItem("w0", gts[0], gts[0])])
+    alone = score_arrays([ScoreItem("w0", gts[0], gts[0])])  # no speaker at all: P-FD and rPCC are NaN
+    assert alone.metrics["l2_exp"] == 0.0 and np.isnan(alone.metrics["pfd_exp"]) and np.isnan(alone.metrics["rpcc_jaw"])
+    assert alone.coverage["not_computable"] == [{"clip": "w0", "metrics": partner_keys(),
+                                                 "reason": "no speaker motion given (partner=None)"}]
+    assert alone.uncertainty["rpcc_exp"] == {"unavailable": "no scored clip has the speaker's motion"}
+    assert "P-FD, rPCC not computable for 1 of 1 clips" in " ".join(alone.notes)
+
+
+def test_without_a_speaker_a_window_is_left_out_of_pfd_and_rpcc_only():
+    # shifts c_i as in the hand-derived case above; sequence 3 (c = 0.4) has no speaker: L2 and FD keep it
+    # (L2 = mean c^2 = 0.075), P-FD = dims * mean c^2 over the other three = dims * 0.14 / 3; with p = 1 - 2 g
+    # rPCC = 2 r, r = corr(g, a) of the three sequences that have a speaker (numpy's corrcoef)
+    gts, speakers = _clustered(), _clustered(seed=2)
+    without = speakers[:3] + [None]
+    metrics, per_sequence = split_metrics([g + c for g, c in zip(gts, (0.1, 0.2, 0.3, 0.4))], gts, without)
+    assert np.isnan(per_sequence[3]["pfd_exp"]) and per_sequence[3]["fd_exp"] == pytest.approx(50 * 0.16, rel=1e-6)
+    for c, dims in DIMS.items():
+        assert metrics[f"l2_{c}"] == pytest.approx(0.075, rel=1e-9)
+        assert metrics[f"fd_{c}"] == pytest.approx(dims * 0.075, rel=1e-6)
+        assert metrics[f"pfd_{c}"] == pytest.approx(dims * 0.14 / 3, rel=1e-6)
+    metrics, _ = split_metrics([1 - 2 * g for g in gts], gts, without)
+    for c, cols in (("exp", slice(0, 50)), ("jaw", slice(50, 53)), ("pose", slice(53, 56))):
+        r = np.corrcoef(np.concatenate(gts[:3])[:, cols].ravel(), np.concatenate(speakers[:3])[:, cols].ravel())[0, 1]
+        assert metrics[f"rpcc_{c}"] == pytest.approx(2 * r, rel=1e-9)
+    assert partner_keys() == [f"{m}_{c}" for m in ("pfd", "rpcc") for c in ("exp", "pose", "jaw")]
+
+
+def _write_random_host(folder, n, seed):
+    """A host split with ``n`` windows of random motion for both persons (every array present)."""
+    rng = np.random.default_rng(seed)
+    folder.mkdir(parents=True)
+    for p in (0, 1):
+        for kind in ("list_faces", "speak_faces"):
+            np.save(folder / layout.array_name(p, kind), rng.normal(size=(n, 64, 184)).astype(np.float32))
+        np.save(folder / layout.array_name(p, "speak_audio"), rng.random((n, 256, 128)).astype(np.float32))
+        np.save(folder / layout.array_name(p, "speak_files"), np.full((n, 64, 3), "v", dtype="<U8"))
+
+
+def test_a_root_missing_one_speakers_file_scores_with_partner_metrics_not_computable(tmp_path):
+    root = tmp_path / "l2l"
+    _write_random_host(root / "conan" / "test", 3, seed=0)
+    _write_random_host(root / "kimmel" / "test", 2, seed=1)
+    gone = root / "kimmel" / "test" / layout.array_name(1, "speak_faces")  # kimmel listens (p0), p1 speaks
+    gone.unlink()
+    shifts = {"conan_test_00000": 0.1, "conan_test_00001": 0.2, "conan_test_00002": 0.3,
+              "kimmel_test_00000": 0.4, "kimmel_test_00001": 0.5}
+    preds = tmp_path / "preds"
+    preds.mkdir()
+    for host, n in (("conan", 3), ("kimmel", 2)):
+        faces = np.load(root / host / "test" / layout.array_name(0, "list_faces"))
+        for i in range(n):
+            clip = f"{host}_test_{i:05d}"
+            np.save(preds / f"{clip}_listener.npy", l2l_to_flame56(faces[i]).astype(np.float64) + shifts[clip])
+    result = CliRunner().invoke(cli, ["score", str(preds), "--suite", "l2l", "--gt", str(root), "--strict",
+                                      "--out", str(tmp_path / "r")])
+    assert result.exit_code == 0, result.output
+    assert "scored 5 of 5; 2 of them without pfd, rpcc (not computable" in result.output
+    assert "P-FD, rPCC not computable for 2 of 5 clips" in result.output
+    saved = load_result(tmp_path / "r" / "result.json")
+    reason = f"speaker motion {gone} not found"
+    assert saved.coverage["not_computable"] == [
+        {"clip": f"kimmel_test_{i:05d}_listener", "metrics": partner_keys(), "reason": reason} for i in range(2)]
+    rows = {r["clip"]: r for r in saved.per_clip}
+    # a shift c leaves covariances alone: FD = P-FD = dims * c^2 per window; L2 = mean c^2 over all windows
+    squares = np.square(list(shifts.values()))
+    for c, dims in DIMS.items():
+        assert saved.metrics[f"l2_{c}"] == pytest.approx(squares.mean(), rel=1e-6)
+        assert saved.metrics[f"fd_{c}"] == pytest.approx(dims * squares.mean(), rel=1e-4)
+        assert saved.metrics[f"pfd_{c}"] == pytest.approx(dims * squares[:3].mean(), rel=1e-4)
+        assert np.isnan(rows["kimmel_test_00001_listener"][f"pfd_{c}"])
+        assert rows["kimmel_test_00001_listener"][f"fd_{c}"] == pytest.approx(dims * 0.25, rel=1e-4)
+        assert np.isfinite(saved.metrics[f"rpcc_{c}"])
 
 
 def test_cli_end_to_end(tmp_path):

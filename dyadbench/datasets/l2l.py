@@ -181,12 +181,16 @@ def ground_truth(root: str | Path, split: str) -> tuple[list[str], np.ndarray, n
     return stack_ground_truth(host_splits(root, split), split)
 
 
+def window_stems(host: str, split: str, n: int) -> list[str]:
+    """Prediction stems ``<host>_<split>_<n:05d>_listener`` of a host split's ``n`` windows."""
+    return [f"{host}_{split}_{i:05d}_{AGENT}" for i in range(n)]
+
+
 def stack_ground_truth(hosts: list[HostSplit], split: str) -> tuple[list[str], np.ndarray, np.ndarray]:
     """:func:`ground_truth` of the given host splits."""
     stems, listener, speaker = [], [], []
     for hs in hosts:
-        n = hs.count()
-        stems += [f"{hs.host}_{split}_{i:05d}_{AGENT}" for i in range(n)]
+        stems += window_stems(hs.host, split, hs.count())
         listener.append(l2l_to_flame56(hs.listener_faces).astype(np.float64))
         speaker.append(l2l_to_flame56(hs.speaker_faces).astype(np.float64))
     return stems, np.concatenate(listener), np.concatenate(speaker)

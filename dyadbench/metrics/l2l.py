@@ -20,6 +20,10 @@ speaker's motion a (all (T, 56) flame56 sequences of a split):
   (the "GT" row of the SFMS table). k: 15 exp, 9 pose (SFMS), 9 jaw.
 - **rPCC** (lower): |corr(g, a) - corr(p, a)| on the flattened pooled split
   (:func:`dyadbench.metrics.dualtalk.rpcc`).
+
+P-FD and rPCC need the speaker's motion (:data:`NEEDS_PARTNER`). A sequence given without it (``a`` is
+None) has P-FD NaN and is left out of both: P-FD is the mean over the other sequences, rPCC is pooled over
+them (NaN when no sequence has its speaker); every other metric uses every sequence.
 """
 
 from __future__ import annotations
@@ -62,10 +66,24 @@ METRIC_NAMES = tuple(HIGHER_IS_BETTER)
 HEADERS = {"l2": "L2", "fd": "FD", "pfd": "P-FD", "var": "Var", "var_gt": "Var-GT", "si": "SI", "si_gt": "SI-GT",
            "rpcc": "rPCC"}
 PER_SEQUENCE = ("l2", "fd", "pfd")
+#: Metrics computed from the speaker's motion (the listener's partner): not computable without it.
+NEEDS_PARTNER = ("pfd", "rpcc")
 
 
 def keys(params: L2LParams = L2LParams()) -> list[str]:
     return [f"{m}_{c}" for m in METRIC_NAMES for c in params.components]
+
+
+def partner_keys(params: L2LParams = L2LParams()) -> list[str]:
+    """The keys of :data:`NEEDS_PARTNER` (P-FD and rPCC per component), in :func:`keys` order."""
+    return [k for k in keys(params) if k.rsplit("_", 1)[0] in NEEDS_PARTNER]
+
+
+def cut(p: np.ndarray, g: np.ndarray, a: np.ndarray | None) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """One sequence's prediction, ground truth and speaker (None: missing) cut to their shortest length."""
+    if a is None:
+        return (*dualtalk.truncate_to_shortest(p, g), None)
+    return dualtalk.truncate_to_shortest(p, g, a)
 
 
 #: Jaw and pose (axis-angle rotations) are ~1e-3 of exp in every size-like metric; printed ×10³ so that two
@@ -89,9 +107,12 @@ COLUMNS = SuiteColumns("l2l", tuple(_column(m, c) for m in METRIC_NAMES for c in
                        primary="l2_exp")
 
 
-def _check(sequences: list[np.ndarray], name: str) -> list[np.ndarray]:
+def _check(sequences: list[np.ndarray | None], name: str) -> list[np.ndarray | None]:
     out = []
     for i, s in enumerate(sequences):
+        if s is None and name == "speaker":
+            out.append(None)
+            continue
         a = np.asarray(s, dtype=np.float64)
         if a.ndim != 2 or a.shape[1] != FLAME56.dim or a.shape[0] < 2:
             raise InputError(f"{name} {i}", f"expected (T >= 2, {FLAME56.dim}), got shape {a.shape}")
@@ -101,14 +122,15 @@ def _check(sequences: list[np.ndarray], name: str) -> list[np.ndarray]:
     return out
 
 
-def sequence_metrics(p: np.ndarray, g: np.ndarray, a: np.ndarray, params: L2LParams = L2LParams()) -> dict:
-    """L2, FD and P-FD of one sequence, per component (``l2_exp``, ``fd_pose``, ...)."""
+def sequence_metrics(p: np.ndarray, g: np.ndarray, a: np.ndarray | None, params: L2LParams = L2LParams()) -> dict:
+    """L2, FD and P-FD of one sequence, per component (``l2_exp``, ``fd_pose``, ...); P-FD is NaN when the
+    speaker's motion ``a`` is None (missing)."""
     out = {}
     for c in params.components:
-        pc, gc, ac = (FLAME56.component(x, c) for x in (p, g, a))
+        pc, gc = FLAME56.component(p, c), FLAME56.component(g, c)
         out[f"l2_{c}"] = dualtalk.mse(pc, gc)
         out[f"fd_{c}"] = dualtalk.fd(pc, gc)
-        out[f"pfd_{c}"] = dualtalk.pfd(pc, gc, ac)
+        out[f"pfd_{c}"] = dualtalk.pfd(pc, gc, FLAME56.component(a, c)) if a is not None else float("nan")
     return out
 
 
@@ -117,7 +139,8 @@ def split_metrics(preds: list[np.ndarray], gts: list[np.ndarray], speakers: list
                   per_sequence: list[dict] | None = None) -> tuple[dict[str, float], list[dict]]:
     """The suite over a split: ``(metrics, per_sequence)``; ``metrics`` keyed :func:`keys`.
 
-    Sequence i's prediction, ground truth and speaker are cut to their shortest common length.
+    Sequence i's prediction, ground truth and speaker are cut to their shortest common length. A speaker
+    given as None (missing) leaves that sequence out of P-FD and rPCC (module docstring).
     ``per_sequence``: the :func:`sequence_metrics` of those cut sequences when the caller computed them
     already (a scorer leaving out sequences whose Fréchet distance is undefined).
     """
@@ -126,16 +149,19 @@ def split_metrics(preds: list[np.ndarray], gts: list[np.ndarray], speakers: list
     if not (len(preds) == len(gts) == len(speakers)) or not preds:
         raise InputError(None, f"need as many predictions, ground truths and speakers (>= 1), got "
                                f"{len(preds)}, {len(gts)}, {len(speakers)}")
-    triples = [dualtalk.truncate_to_shortest(p, g, a) for p, g, a in zip(preds, gts, speakers)]
+    triples = [cut(p, g, a) for p, g, a in zip(preds, gts, speakers)]
     if per_sequence is None:
         per_sequence = [sequence_metrics(p, g, a, params) for p, g, a in triples]
-    pooled = [np.concatenate([t[i] for t in triples]) for i in range(3)]
+    pooled = [np.concatenate([t[i] for t in triples]) for i in range(2)]
+    paired = [t for t in triples if t[2] is not None]
+    with_speaker = [np.concatenate([t[i] for t in paired]) for i in range(3)] if paired else None
     metrics: dict[str, float] = {}
     for c in params.components:
-        p, g, a = (FLAME56.component(x, c) for x in pooled)
+        p, g = (FLAME56.component(x, c) for x in pooled)
         metrics[f"l2_{c}"] = dualtalk.mse(p, g)
         metrics[f"fd_{c}"] = float(np.mean([s[f"fd_{c}"] for s in per_sequence]))
-        metrics[f"pfd_{c}"] = float(np.mean([s[f"pfd_{c}"] for s in per_sequence]))
+        pfd = [s[f"pfd_{c}"] for s, t in zip(per_sequence, triples) if t[2] is not None]
+        metrics[f"pfd_{c}"] = float(np.mean(pfd)) if pfd else float("nan")
         metrics[f"var_{c}"] = dualtalk.variance(p)
         metrics[f"var_gt_{c}"] = dualtalk.variance(g)
         k = params.si_k[c]
@@ -144,5 +170,6 @@ def split_metrics(preds: list[np.ndarray], gts: list[np.ndarray], speakers: list
             model = fit_kmeans(g, k, params.kmeans_random_state)
         metrics[f"si_{c}"] = occupancy_entropy(model.predict(p), k)
         metrics[f"si_gt_{c}"] = occupancy_entropy(model.predict(g), k)
-        metrics[f"rpcc_{c}"] = dualtalk.rpcc(p, g, a)
+        metrics[f"rpcc_{c}"] = (dualtalk.rpcc(*(FLAME56.component(x, c) for x in with_speaker))
+                                if with_speaker is not None else float("nan"))
     return {k: metrics[k] for k in keys(params)}, per_sequence

@@ -37,7 +37,7 @@ from dyadbench.errors import InputError
 from dyadbench.metrics import dualtalk as suite
 from dyadbench.metrics.columns import ColumnSpec
 from dyadbench.motion import FLAME56
-from dyadbench.scoring import policy
+from dyadbench.scoring import policy, without_partner
 from dyadbench.scoring.parallel import THREADS_PER_JOB, map_items
 from dyadbench.scoring.predictions import PredictionFile, open_predictions
 from dyadbench.scoring.report import ScoreItem, ScoreReport
@@ -143,25 +143,6 @@ def _aggregate(rows: list[dict], without_partner: set[str]) -> tuple[dict[str, f
 PARTNER_HEADERS = ", ".join(m.header for m in suite.METRICS if m.needs_partner)
 
 
-def _not_computable(jobs_list: list[_Job], scored: set[str]) -> list[dict]:
-    """``coverage["not_computable"]``: each scored clip whose partner's ground truth is missing, the keys it
-    lacks and why."""
-    return [{"clip": job.stem, "metrics": list(suite.PARTNER_KEYS),
-             "reason": job.partner_missing}
-            for job in jobs_list if job.partner is None and job.stem in scored]
-
-
-def _not_computable_notes(entries: list[dict], n_scored: int) -> list[str]:
-    if not entries:
-        return []
-    shown = ", ".join(e["clip"] for e in entries[:3]) + (", …" if len(entries) > 3 else "")
-    means = ("not computable for any scored clip (NaN)" if len(entries) == n_scored
-             else "means over the other clips")
-    return [f"{PARTNER_HEADERS} not computable for {len(entries)} of {n_scored} clips: the partner's ground "
-            f"truth is missing ({shown}; listed under coverage.not_computable); every other metric is scored; "
-            f"{PARTNER_HEADERS}: {means}"]
-
-
 def _undefined_notes(undefined: dict[str, list[str]], n_scored: int) -> list[str]:
     notes = []
     for key, clips in undefined.items():
@@ -186,12 +167,14 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
             rows.append({"clip": outcome.stem, **outcome.metrics})
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
-    not_computable = _not_computable(jobs_list, {row["clip"] for row in rows})
+    missing = {job.stem: job.partner_missing for job in jobs_list if job.partner is None}
+    not_computable = without_partner.not_computable(missing, (row["clip"] for row in rows), suite.PARTNER_KEYS)
     metrics, undefined = _aggregate(rows, {e["clip"] for e in not_computable})
     spread, method = uncertainty.estimate(SUITE, rows, list(suite.KEYS), seed=seed)
     present = {job.stem for job in jobs_list}
     notes = (policy.warning_notes(warnings) + policy.extra_notes(extra, expected)
-             + _not_computable_notes(not_computable, len(rows)) + _undefined_notes(undefined, len(rows)))
+             + without_partner.notes(not_computable, len(rows), PARTNER_HEADERS)
+             + _undefined_notes(undefined, len(rows)))
     if truncated:
         notes.append(f"{len(truncated)} clip(s) truncated to the shortest of prediction, ground truth and "
                      f"partner lengths (listed under coverage.truncated)")
