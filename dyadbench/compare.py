@@ -27,13 +27,12 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-from dyadbench import strict_json
 from dyadbench.errors import InputError
 from dyadbench.metrics.columns import declared
-from dyadbench.results import SCHEMA, load_result
+from dyadbench.results import load_result
 from dyadbench.uncertainty import LEVEL, RESAMPLES, Bootstrap, dialogue_of
 
-RESULT_NAMES = ("result.json", "results.json")  # eval --out, score --out
+RESULT_NAMES = ("result.json", "results.json")  # eval --out and score --out; older score --out
 MIN_DIALOGUES = 20
 FEW_DIALOGUES = (f"fewer than {MIN_DIALOGUES} dialogues: the percentile bootstrap CI is too narrow (it can exclude 0 "
                  f"where the t-test's p is large); read significance with care")
@@ -52,36 +51,20 @@ class Run:
 
 
 def load_run(path: str | Path) -> Run:
-    """A result file (``eval``), a ``score --out`` results.json (per-clip values read from its
-    per_clip.csv), or an output folder holding either; InputError naming the file when the per-item
-    values are missing."""
+    """A result file read by :func:`dyadbench.results.load_result` (``eval``'s or ``score``'s result.json,
+    or an older ``score`` results.json with its per_clip.csv beside it), or an output folder holding one;
+    InputError naming the file when it is unreadable or holds no per-item values."""
     path = Path(path)
     if path.is_dir():
         found = [path / name for name in RESULT_NAMES if (path / name).is_file()]
         if not found:
             raise InputError(path, f"no {' or '.join(RESULT_NAMES)} in this folder")
         path = found[0]
-    try:
-        data = strict_json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError) as exc:
-        raise InputError(path, f"not a readable result file ({exc})") from None
-    if isinstance(data, dict) and data.get("schema") == SCHEMA:
-        result = load_result(path)
-        suite, metrics, rows = result.suite, tuple(result.metrics), result.per_clip
-    elif isinstance(data, dict) and isinstance(data.get("suite"), str) and isinstance(data.get("metrics"), dict):
-        suite, metrics, rows = data["suite"], tuple(data["metrics"]), _score_rows(path.parent / "per_clip.csv")
-    else:
-        raise InputError(path, "not a dyadbench result (eval result.json or score results.json)")
-    if not rows:
-        raise InputError(path, "has no per-clip metrics (written with --no-per-clip?); compare needs them")
-    return Run(path, suite, metrics, rows)
-
-
-def _score_rows(csv: Path) -> list[dict]:
-    if not csv.is_file():
-        raise InputError(csv, "per-clip metrics of this score result not found; compare needs them")
-    frame = pd.read_csv(csv, dtype={"clip": str})
-    return frame.to_dict("records")
+    result = load_result(path)
+    if not result.per_clip:
+        raise InputError(path, "has no per-clip metrics (written with --no-per-clip, or an older score "
+                               "results.json whose per_clip.csv is gone?); compare needs them")
+    return Run(path, result.suite, tuple(result.metrics), result.per_clip)
 
 
 def higher_is_better(suite: str, key: str) -> bool | None:

@@ -215,7 +215,10 @@ def test_compare_two_runs_differing_by_a_constant():
 
 def _score_output(folder, clips: list[str], mse: list[float]):
     folder.mkdir()
-    (folder / "results.json").write_text(json.dumps({"suite": "dualtalk", "metrics": {"mse_jaw": 0.0}}))
+    (folder / "results.json").write_text(json.dumps({  # as written by `score` before it wrote result.json
+        "suite": "dualtalk", "metrics": {"mse_jaw": 0.0}, "n_scored": len(clips),
+        "config": {"suite": "dualtalk", "pred": "preds", "gt": "gt/test", "seed": 0},
+        "coverage": {"expected": len(clips), "scored": len(clips), "missing": [], "extra": []}}))
     pd.DataFrame({"clip": clips, "mse_jaw": mse}).to_csv(folder / "per_clip.csv", index=False)
     return folder
 

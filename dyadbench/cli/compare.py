@@ -28,8 +28,9 @@ def compare_command(a: Path, b: Path, out: Path | None, seed: int, resamples: in
     """Paired differences B − A per metric column over the items both runs scored.
 
     \b
-    A, B: result files of `dyadbench eval` (with per-clip metrics), `dyadbench score --out` results.json
-    (its per_clip.csv beside it), or the output folders holding them; the same suite and the same items.
+    A, B: result.json files of `dyadbench eval` or `dyadbench score --out` (with per-clip metrics), an
+    older `score` results.json (its per_clip.csv beside it), or the output folders holding them; the same
+    suite and the same items.
     Per column: mean A, mean B, mean difference B − A with its cluster-robust standard error, a seeded
     bootstrap CI resampling dialogues (both directions of a dialogue together), a paired t-test p-value,
     and which run is better by the column's direction when the CI excludes 0.
