@@ -80,14 +80,14 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
     for d_s in (32, 64):
         out = work / f"style-tiny-se{d_s}.pt"
         if not (reuse and out.is_file()):
-            train_style_encoder.main(["--config", f"tiny-se{d_s}", "--threads", "1", "--out", str(out)],
+            train_style_encoder.main(["--config", f"tiny-se{d_s}", "--threads", "1", "--export", str(out)],
                                      standalone_mode=False)
         paths[f"style{d_s}"] = out
         seconds[f"SE-{d_s} encoder"] = load_style_model(out)[1]["train_seconds"]
     for variant in VARIANTS:
         out = work / f"tiny-{variant}.pt"
         if not (reuse and out.is_file()):
-            args = ["--config", f"tiny-{variant}", "--threads", "1", "--out", str(out)]
+            args = ["--config", f"tiny-{variant}", "--threads", "1", "--export", str(out)]
             if variant != "base":
                 args += ["--style-encoder", str(paths["style32" if variant == "se32" else "style64"])]
             train_generator.main(args, standalone_mode=False)
@@ -109,7 +109,7 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
             if not (reuse and out.is_file()):
                 train_generator.main(["--config", "tiny-se64", "--lam", str(lam), "--seed", str(seed),
                                       "--threads", "1", "--style-encoder", str(paths["style64"]),
-                                      "--dataset", "gaze", "--data", str(root), "--out", str(out)],
+                                      "--dataset", "gaze", "--data", str(root), "--export", str(out)],
                                      standalone_mode=False)
             paths[key] = out
     return paths, seconds
@@ -152,7 +152,7 @@ def _paired(without: list[dict], with_velocity: list[dict]) -> tuple[float, floa
 def train_ablation_arm(variant: str, selection: str, seed: int, style_encoder: Path, out: Path) -> None:
     """Train one generator of the velocity-loss ablation (tiny preset, one seed, one checkpoint selection)."""
     train_generator.main(["--config", f"tiny-{variant}", "--seed", str(seed), "--selection", selection,
-                          "--threads", "1", "--style-encoder", str(style_encoder), "--out", str(out)],
+                          "--threads", "1", "--style-encoder", str(style_encoder), "--export", str(out)],
                          standalone_mode=False)
 
 
