@@ -5,7 +5,7 @@ the y value is the mean over the exp, jaw and pose components of the relative in
 (:func:`dyadbench.robustness.degradation_frame`), on a symmetric-log axis (linear within +-10 %), since a
 partner-copying model's increase under motion noise is orders of magnitude above the others'. The clean run is
 the point (0, 0); the x ticks are the occupancies the sweep ran. Each model has its colour and marker of
-every dyadbench figure (:mod:`dyadbench.figure_style`); the legend is right of the panels. Written as PDF,
+every dyadbench figure, baselines in grey (:mod:`dyadbench.figure_style`); the legend is right of the panels. Written as PDF,
 SVG or PNG by the extension of ``out``, without timestamps or software tags, so the same table gives the
 same bytes.
 """
@@ -24,7 +24,7 @@ def plot_robustness(frame: pd.DataFrame, out: str | Path) -> Path:
     """Write the figure (see the module docstring) of ``frame`` to ``out``."""
     style.figure_format(out)
     families = sorted(set(frame["perturbation"]))
-    models = sorted(set(frame["model"]), key=lambda m: (style.model_index(m), m))
+    styles = style.figure_styles((model, False) for model in set(frame["model"]))
     with style.paper_style() as plt:
         fig, axes = plt.subplots(len(METRICS), len(families), figsize=(style.PAGE_WIDTH, 1.35 * len(METRICS) + 0.5),
                                  squeeze=False, layout="constrained")
@@ -35,11 +35,11 @@ def plot_robustness(frame: pd.DataFrame, out: str | Path) -> Path:
                 ax = axes[row, col]
                 rows = part[part["metric"].str.startswith(prefix + "_")]
                 mean = rows.groupby(["model", "occupancy"])["increase_pct"].mean().reset_index()
-                for model in models:
+                for model, series in styles.items():
                     line = mean[mean["model"] == model]
                     if not line.empty:
                         ax.plot([0.0, *line["occupancy"]], [0.0, *line["increase_pct"]], label=model,
-                                **style.model_style(model).kwargs())
+                                **series.kwargs())
                 ax.axhline(0.0, color="grey", lw=0.5)
                 ax.set_yscale("symlog", linthresh=10)
                 values = mean["increase_pct"].dropna()

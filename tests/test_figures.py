@@ -1,5 +1,6 @@
-"""Figures: format by extension (PDF/SVG/PNG, others refused), one style per model in every figure, variants
-as their own series, axes at the protocol's values, datasets never mixed, and the committed figure set."""
+"""Figures: format by extension (PDF/SVG/PNG, others refused), one style per model in every figure, baselines
+secondary, variants as their own series, distinct series within a figure, trivial baselines off-scale, axes at
+the protocol's values, datasets never mixed, and the committed figure set."""
 
 from __future__ import annotations
 
@@ -14,8 +15,11 @@ from PIL import Image
 from dyadbench import figure_style, plotting
 from dyadbench.cli import cli
 from dyadbench.errors import ConfigError
-from dyadbench.figure_set import figure_builders, figure_files
+from dyadbench.figure_range import value_range
+from dyadbench.figure_set import figure_builders, figure_files, figure_metrics
 from dyadbench.leaderboard import long_table
+from dyadbench.registry import MODELS
+from dyadbench.robustness import degradation_frame
 from dyadbench.results import DataRecord, EvalResult, ModelRecord, ProtocolRecord, TimingRecord
 
 REPO = Path(__file__).resolve().parents[1]
@@ -127,14 +131,100 @@ def test_models_keep_their_style_across_figures_and_variants_are_separate_series
     assert list(ax.get_xticks()) == [0, 7] and ax.yaxis.get_major_formatter().get_offset() == ""
 
 
-def test_palette_gives_every_known_model_its_own_pair_and_unknown_names_a_fixed_one():
-    pairs = [(figure_style.PALETTE[i % 9], figure_style.MARKERS[i % 7]) for i in range(63)]
-    assert len(set(pairs)) == 63  # 9 colours x 7 markers, coprime: 63 distinct pairs in a row
-    known = [figure_style.model_style(m) for m in figure_style.KNOWN_MODELS if m != "oracle"]
-    assert len({(s.color, s.marker) for s in known}) == len(known) == 15
+def test_models_have_their_own_colours_and_baselines_are_grey_and_thin():
+    tags = {name: MODELS.get(name).tags for name in MODELS.names()}
+    models = [n for n, t in tags.items() if "baseline" not in t and "oracle" not in t]
+    baselines = [n for n, t in tags.items() if "baseline" in t]
+    assert {"timar", "timar-stream", "dualtalk", "dualtalk-offline", "sfms", "stygazetalk"} <= set(models)
+    assert {"zero", "mean-frame", "random", "mime", "nn-retrieval", "gaze-static"} <= set(baselines)
+    styles = {n: figure_style.model_style(n) for n in models + baselines}
+    assert len({styles[m].color for m in models}) == len(models)  # no two models share a colour
+    greys = {"#9A9A9A", "#5E5E5E"}
+    for m in models:
+        assert styles[m].color not in greys | {"#000000"} and styles[m].linewidth == 1.3, m
+    for b in baselines:
+        assert styles[b].color in greys and styles[b].linewidth == 0.8, b
+        assert styles[b].marker not in {styles[m].marker for m in models}, b  # markers unlike any model's
+    assert len({(s.color, s.marker) for s in styles.values()}) == len(styles)
+    for oracle in ("oracle", "gaze-headcopy"):
+        assert (figure_style.model_style(oracle).color, figure_style.model_style(oracle).linestyle) == ("#000000",
+                                                                                                      "--")
+
+
+def test_unknown_names_get_a_fixed_style_and_a_figure_never_repeats_one():
     names = [f"model-{i}" for i in range(30)]
-    assert [figure_style.model_index(n) for n in names] == [figure_style.model_index(n) for n in names]
-    assert all(16 <= figure_style.model_index(n) < 63 for n in names)
+    assert [figure_style.model_style(n) for n in names] == [figure_style.model_style(n) for n in names]
+    assert all(figure_style.model_style(n).kind == "model" for n in names)
+    # 10 models in one figure (6 reference + 4 new names): 10 colours; 30 new names: no style twice
+    few = figure_styles_of(["timar", "timar-stream", "dualtalk", "dualtalk-offline", "sfms", "stygazetalk",
+                            *names[:4], "zero", "oracle"])
+    colours = [few[n].color for n in few if few[n].kind == "model"]
+    assert len(colours) == len(set(colours)) == 10
+    assert few["timar"] == figure_style.model_style("timar")  # registered names never move
+    many = figure_styles_of([*names, "zero", "random", "timar", "timar (cfg1.5)", "timar (cfg2)", "timar (cfg3)",
+                             "timar (cfg4)"])
+    triples = [(s.color, s.marker, s.linestyle) for s in many.values()]
+    assert len(set(triples)) == len(triples) == len(many)
+    assert {many[f"timar (cfg{k})"].color for k in ("1.5", 2, 3, 4)} == {many["timar"].color}
+
+
+def figure_styles_of(labels: list[str]) -> dict[str, figure_style.SeriesStyle]:
+    return figure_style.figure_styles((label, label == "oracle") for label in labels)
+
+
+def test_committed_result_set_has_distinct_series_in_every_figure(monkeypatch):
+    monkeypatch.chdir(REPO)
+    long = long_table([Path("results")])
+    figures = {}
+    for dataset in sorted(set(long["dataset"])):
+        rows = long[long["dataset"] == dataset]
+        metrics = [m for m in figure_metrics(rows["suite"].iloc[0]) if m in set(rows["metric"])]
+        figures[dataset] = plotting.series_of(plotting.labelled(rows, dataset, metrics))
+    frame, _ = degradation_frame([Path("results-robustness")])
+    figures["robustness"] = [(model, False) for model in set(frame["model"])]
+    assert {"synthetic", "l2l", "synthetic-gaze", "robustness"} <= set(figures)
+    for name, series in figures.items():
+        styles = figure_style.figure_styles(series)
+        triples = [(s.color, s.marker, s.linestyle) for s in styles.values()]
+        assert len(set(triples)) == len(triples), name
+        models = {figure_style.split_label(label)[0]: s.color for label, s in styles.items() if s.kind == "model"}
+        assert len(set(models.values())) == len(models), name
+    assert len([s for s in figure_style.figure_styles(figures["synthetic"]).values() if s.kind == "model"]) == 7
+
+
+def test_baselines_far_from_the_models_go_off_scale():
+    # models 0 (oracle), 4, 10: reach 10, so a baseline beyond 10 + 10 = 20 is off-scale; 18 stays
+    scale = value_range({"oracle": [0.0], "timar": [4.0, 5.0], "dualtalk": [10.0], "zero": [65.3, 65.3],
+                         "mean-frame": [18.0], "random": [float("nan"), 20.0]}, {"zero", "mean-frame", "random"})
+    assert (scale.low, scale.high, scale.above, scale.below) == (0.0, 20.0, {"zero": 65.3}, {})
+    assert scale.limits() == pytest.approx((-0.05 * 20, 20 + 0.16 * 20))
+    # a tight cluster far from 0 (0.61..0.77): reach is its magnitude 0.77, so a baseline at 0.28 stays
+    assert value_range({"m": [0.61, 0.77], "b": [0.28]}, {"b"}).below == {}
+    # below: models 10..12 reach 12, a baseline at -5 < 10 - 12; a model far away is never off-scale
+    scale = value_range({"m": [10.0, 12.0], "b": [-5.0]}, {"b"})
+    assert (scale.low, scale.high, scale.above, scale.below) == (10.0, 12.0, {}, {"b": -5.0})
+    assert scale.limits() == pytest.approx((10 - 0.16 * 2, 12 + 0.05 * 2))
+    scale = value_range({"m": [10.0, 12.0], "other": [100.0]}, set())
+    assert (scale.low, scale.high, scale.above) == (10.0, 100.0, {})
+    assert value_range({"b": [1.0], "c": [1000.0]}, {"b", "c"}).above == {}  # no model: nothing off-scale
+    with pytest.raises(ValueError, match="no finite value"):
+        value_range({"m": [float("nan")]}, set())
+
+
+def test_context_curves_draw_an_off_scale_baseline_at_the_edge_with_its_value(tmp_path, captured):
+    results = tmp_path / "r"
+    for n in (0, 7):
+        write_result(results, "zero", n, 65.3)
+        write_result(results, "timar", n, 5.0 + n / 7)
+        write_result(results, "oracle", n, 0.0, oracle=True)
+    plotting.plot_context_curves(long_table([results]), ["fd_exp"], tmp_path / "c.png")
+    (ax,) = captured[0].axes
+    low, high = ax.get_ylim()
+    assert (low, high) == pytest.approx((-0.05 * 6, 6 + 0.16 * 6))  # kept: 0..6
+    zero = next(line for line in ax.get_lines() if line.get_label() == "zero")
+    assert list(zero.get_ydata()) == pytest.approx([high, high])
+    assert [t.get_text() for t in ax.texts] == ["zero 65.3 ↑"]
+    assert legend(captured[0])["zero"][0] == "#9A9A9A"
 
 
 def test_datasets_never_share_a_figure_and_one_context_has_no_curve(tmp_path):
