@@ -5,9 +5,9 @@ the y value is the mean over the exp, jaw and pose components of the relative in
 (:func:`dyadbench.robustness.degradation_frame`), on a symmetric-log axis (linear within +-10 %), since a
 partner-copying model's increase under motion noise is orders of magnitude above the others'. The clean run is
 the point (0, 0); the x ticks are the occupancies the sweep ran. Each model has its colour and marker of
-every dyadbench figure, baselines in grey (:mod:`dyadbench.figure_style`); the legend is right of the panels. Written as PDF,
-SVG or PNG by the extension of ``out``, without timestamps or software tags, so the same table gives the
-same bytes.
+every dyadbench figure, baselines in grey (:mod:`dyadbench.figure_style`); the legend is right of the panels.
+Written as PDF, SVG or PNG by the extension of ``out``, without timestamps or software tags, so the same table
+gives the same bytes.
 """
 
 from __future__ import annotations

@@ -31,7 +31,9 @@ def plot() -> None:
     \b
     Every figure is written as PDF, SVG or PNG by the extension of --out (another extension is an error),
     in one style sized for a two-column paper; every model keeps one colour and marker in every figure,
-    protocol variants (e.g. `timar (cfg1.5)`) are separate series. Regenerate the committed figures with
+    baselines are thin grey lines, protocol variants (e.g. `timar (cfg1.5)`) are separate series, and a
+    baseline far outside the models' range is drawn at the panel edge with its value written there.
+    Regenerate the committed figures with
       dyadbench plot all results/ --robustness results-robustness --out figures/
     """
 
