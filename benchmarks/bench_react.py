@@ -1,16 +1,22 @@
 """REACT suite: fast implementation vs the straightforward loops of the specification.
 
     python benchmarks/bench_react.py                 # --size small: N = 200 samples (a few minutes)
-    python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750 (~6 min)
+    python benchmarks/bench_react.py --size val      # N = 1676 (REACT val), R = 10, T = 750 (~15 min)
 
-Writes benchmarks/results/react_<size>.{json,md} (``_random`` appended with ``--predictions random``).
+Writes benchmarks/results/react_<size>.{json,md} (``_random`` / ``_near`` appended with ``--predictions``).
 
 Problem: R = 10 reactions of T = 750 frames per speaker sample. Ground truth: emotion features of the
 embedded synthetic corpus (:func:`dyadbench.synth.react_writer.emotion_features` of generated
 dialogues, tiled to N samples); neighbours: each row's nearest ``--density`` fraction of listener
 reactions (the real matrix's density is not published; 2% gives ~34 neighbours per row at N = 1676).
 Predictions (``--predictions``): ``plausible`` = another sample's real reaction with 10% of the AUs
-flipped and noise on the continuous features; ``random`` = uniform [0, 1) (the official Random baseline).
+flipped and noise on the continuous features; ``near`` = the same, but the reaction is one of the row's
+appropriate real reactions (a model whose reactions are appropriate); ``random`` = uniform [0, 1) (the
+official Random baseline).
+
+FRDist is timed twice, side by side: today's method (``prune=False``: every candidate aligned in full
+in float32, the screened ones in float64) and the pruned one (the default: early-abandoned alignments,
+:mod:`dyadbench.metrics.dtw`), with a check that both give the same per-reaction values bit for bit.
 
 Every metric of the fast implementation is timed on the full problem. The straightforward loops
 (``tests/react_reference.py``: tslearn ``dtw`` per pair and group, ``np.cov`` per channel, ...) are
@@ -57,6 +63,8 @@ def build_problem(n: int, density: float, kind: str, seed: int = 0):
         pred = rng.random((n, R, T, 25)).astype(np.float32)
     else:
         src = listener[rng.integers(0, n, size=(n, R))]
+        if kind == "near":
+            src = listener[np.stack([rng.choice(np.flatnonzero(s[k] == 1), size=R) for k in range(n)])]
         flip = rng.random(src[..., :15].shape) < 0.1
         pred = src.copy()
         pred[..., :15] = np.where(flip, 1.0 - src[..., :15], src[..., :15])
@@ -91,7 +99,9 @@ def main() -> None:
     parser.add_argument("--size", choices=list(SIZES), default="small", help="small: N=200; val: N=1676")
     parser.add_argument("--n", type=int, default=None, help="number of speaker samples (overrides --size)")
     parser.add_argument("--density", type=float, default=0.02, help="neighbours per row as a fraction of N")
-    parser.add_argument("--predictions", choices=["plausible", "random"], default="plausible")
+    parser.add_argument("--predictions", choices=["plausible", "near", "random"], default="plausible",
+                        help="plausible: a perturbed real reaction of another sample; near: of an appropriate "
+                             "one; random: uniform [0, 1)")
     parser.add_argument("--subset", type=int, default=2, help="speaker rows (FRDvs: samples x5) for the loops")
     parser.add_argument("--compare-screen", action="store_true",
                         help="also time FRDist without the float32 screen (every pair aligned in float64)")
@@ -111,10 +121,11 @@ def main() -> None:
     say(f"N={n} R={R} T={T} neighbours/row mean {nnz / n:.1f} ({args.density:.1%}), predictions={args.predictions},"
         f" cpus={os.cpu_count()}, numba threads={react_threads()}")
 
-    fast_full, fast_cpu = {}, {}
+    fast_full, fast_cpu, outputs = {}, {}, {}
     runs = [("FRCorr", react.fr_corr, (p, lst, indptr, indices), {}),
-            ("FRDist", react.fr_dist, (p, lst, indptr, indices), {}),
-            ("FRDist (no screen)", react.fr_dist, (p, lst, indptr, indices), {"screen": False}),
+            ("FRDist", react.fr_dist_per_reaction, (p, lst, indptr, indices), {}),
+            ("FRDist (no pruning)", react.fr_dist_per_reaction, (p, lst, indptr, indices), {"prune": False}),
+            ("FRDist (no screen)", react.fr_dist_per_reaction, (p, lst, indptr, indices), {"screen": False}),
             ("FRDiv", react.fr_div, (p,), {}), ("FRVar", react.fr_var, (p,), {}), ("FRDvs", react.fr_dvs, (p,), {}),
             ("FRSyn", react.fr_syn, (p, sp), {}), ("FRSyn_all", react.fr_syn, (p, sp), {"all_reactions": True})]
     dist_rows = slice(0, min(args.frdist_rows or n, n))
@@ -127,7 +138,7 @@ def main() -> None:
             sub_ptr, sub_idx = csr(s[dist_rows])
             fn_args, factor = (p[dist_rows], lst, sub_ptr, sub_idx), dist_scale
             name = f"{name} *"
-        _, seconds = timed(fn, *fn_args, **fn_kwargs)
+        outputs[name], seconds = timed(fn, *fn_args, **fn_kwargs)
         fast_full[name], fast_cpu[name] = seconds * factor, CPU[fn.__name__] * factor
 
     rows = np.sort(np.random.default_rng(1).choice(n, size=min(args.subset, n), replace=False))
@@ -182,9 +193,27 @@ def main() -> None:
         say(f"* fast FRDist timed on rows 0..{dist_rows.stop - 1} and extrapolated by neighbour count (x{dist_scale:.1f})")
     say(f"{'whole suite':<22}{total[0]:>10.2f}{total[1]:>10.2f}{total[2]:>12.1f}{total[2] / total[0]:>8.1f}x"
         f"{total[2] / total[1]:>7.1f}x")
-    out = args.out or RESULTS / f"react_{args.size}{'_random' if args.predictions == 'random' else ''}"
+    star = " *" if dist_rows.stop < n else ""
+    say_side_by_side(say, loops["FRDist"] * scale["FRDist"], same["FRDist"],
+                     [(label, fast_full[name + star], fast_cpu[name + star], outputs[name + star])
+                      for label, name in (("today (no pruning)", "FRDist (no pruning)"), ("pruned", "FRDist"))])
+    suffix = "" if args.predictions == "plausible" else f"_{args.predictions}"
+    out = args.out or RESULTS / f"react_{args.size}{suffix}"
     text = preformatted("REACT suite: dyadbench vs the straightforward loops of the specification", transcript.text())
     print("wrote", *write_result(out, text, seed=0))
+
+
+def say_side_by_side(say, loops_cpu: float, loops_same: bool, methods) -> None:
+    """FRDist's methods in one table: the loops (estimate), then each (label, wall, cpu, per-reaction values);
+    'identical' compares every method's values with the first one's, bit for bit."""
+    say("\nFRDist side by side (loops: CPU seconds on one core, extrapolated; 'identical': the per-reaction "
+        "values\nequal the first method's bit for bit, the loops' FRDist on the subset for the loops)\n")
+    say(f"{'method':<22}{'wall s':>10}{'cpu s':>10}{'loops/wall':>12}{'loops/cpu':>11}{'vs today':>10}  identical")
+    say(f"{'loops (tslearn)':<22}{loops_cpu:>10.1f}{loops_cpu:>10.1f}{1:>11.1f}x{1:>10.1f}x{'':>10}  {loops_same}")
+    first = methods[0]
+    for label, wall, cpu, values in methods:
+        say(f"{label:<22}{wall:>10.2f}{cpu:>10.2f}{loops_cpu / wall:>11.1f}x{loops_cpu / cpu:>10.1f}x"
+            f"{first[1] / wall:>9.2f}x  {np.array_equal(values, first[3])}")
 
 
 def warm_up() -> None:

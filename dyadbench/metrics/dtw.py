@@ -49,8 +49,9 @@ most promising candidates; its other candidates are abandoned (value inf) once t
 float64, the smallest of those values (strictly: an abandoned candidate is strictly worse, so neither
 the minimum nor the first candidate attaining it changes); in float32, their smallest screen upper
 end, comparing the bound's screen lower end (an abandoned candidate would have been screened out
-anyway, so the same candidates reach the float64 pass). The bound only helps when candidates differ clearly: DTW without a
-window tolerates any time warp, so the prefix of the grid carries no more than its share of the cost.
+anyway, so the same candidates reach the float64 pass). The bound only helps when candidates differ
+clearly: DTW without a window tolerates any time warp, so the prefix of the grid carries no more than
+its share of the cost (on near ties every candidate is still aligned in full).
 """
 
 from __future__ import annotations
