@@ -7,10 +7,11 @@ import pytest
 from click.testing import CliRunner
 
 from dyadbench.cli import cli
-from dyadbench.datasets.seamless import SEAMLESS, open_split, validate_folder
+from dyadbench.datasets.seamless import SEAMLESS, SeamlessSplit, open_split, read_motion, validate_folder
 from dyadbench.datasets.seamless_audio import to_16k
 from dyadbench.metrics import dualtalk
 from dyadbench.metrics.seamless import item_metrics
+from dyadbench.results import load_result
 from dyadbench.synth.seamless_writer import write_seamless_split
 
 
@@ -92,7 +93,11 @@ def test_eval_mime_and_leaderboard_row_and_reference_refusal(root, tmp_path):
     result = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "mime",
                                   "--split", "test", "--out", str(out)])
     assert result.exit_code == 0, result.output
-    assert (out / "result.json").is_file()
+    recorded = load_result(out / "result.json")
+    # dyads 7 (empty bundle) and 8 (no movement features) of the 10 are skipped, with the count in the notes
+    assert recorded.data.clips == 8
+    assert any(n.startswith("2 dyad(s) of the split skipped by the reader") and "I00000007_P20015.npz: empty "
+               "bundle" in n for n in recorded.notes), recorded.notes
     board = runner.invoke(cli, ["leaderboard", str(out / "result.json"), "--out", str(tmp_path / "boards"), "--no-paper"])
     assert board.exit_code == 0, board.output
     assert "mime" in board.output
@@ -100,3 +105,28 @@ def test_eval_mime_and_leaderboard_row_and_reference_refusal(root, tmp_path):
                                    "--split", "test", "--out", str(tmp_path / "timar")])
     assert refused.exit_code != 0
     assert "56 dims); the split is seamless (166 dims at 30 fps)" in str(refused.exception)
+
+
+def test_score_cli_seamless_split_result_and_leaderboard(root, tmp_path):
+    pred = tmp_path / "pred"
+    pred.mkdir()
+    pairs = SeamlessSplit.open(root, "improvised/test").pairs
+    for first, second in pairs.values():  # each agent predicted by its partner's features (mime)
+        for agent, partner in ((first, second), (second, first)):
+            np.save(pred / f"{agent.stem}.npy", read_motion(partner))
+    runner = CliRunner()
+    out = tmp_path / "scored"
+    result = runner.invoke(cli, ["score", str(pred), "--gt", str(root), "--suite", "seamless", "--split",
+                                  "improvised/test", "--model", "partner-copy", "--out", str(out)])
+    assert result.exit_code == 0, result.output
+    recorded = load_result(out / "result.json")
+    assert recorded.suite == "seamless" and recorded.data.split == "improvised/test"
+    assert recorded.model.name == "partner-copy" and recorded.data.items == 2 * len(pairs) == 16
+    assert any("2 dyad(s) of the split skipped" in n for n in recorded.notes)
+    board = runner.invoke(cli, ["leaderboard", str(out), "--out", str(tmp_path / "boards"), "--no-paper"])
+    assert board.exit_code == 0, board.output
+    long = (tmp_path / "boards" / "long.csv").read_text()
+    assert any(line.startswith("dyadbench,") and ",partner-copy," in line for line in long.splitlines()), long[:500]
+    train_split = runner.invoke(cli, ["score", str(pred), "--gt", str(root), "--suite", "seamless", "--split",
+                                       "improvised/train"])
+    assert train_split.exit_code != 0  # --split reaches the suite: no prediction names a train participant

@@ -48,10 +48,14 @@ def default_model_name(pred: Path) -> str:
                    "(l2l), a gaze-head root or session folder (gaze) or a Seamless Interaction root (seamless).")
 @click.option("--suite", default="dualtalk", show_default=True, type=click.Choice(SUITES.names()),
               help="Metric suite. dualtalk = DualTalk/TIMAR tables; react = REACT challenge; "
-                   "l2l = Learning2Listen line; gaze = StyGazeTalk gaze-head suite.")
+                   "l2l = Learning2Listen line; gaze = StyGazeTalk gaze-head suite; seamless = Seamless "
+                   "Interaction suite (invalid movement frames excluded).")
 @click.option("--split", default=None,
               help="Split name where the ground truth root holds several (dualtalk: test/ood sub-folder "
-                   "of the DualTalk root; react: val/test; l2l: test; gaze: a split folder).")
+                   "of the DualTalk root; react: val/test; l2l: test; gaze: a split folder; seamless: "
+                   "train/dev/test of both labels, or one label's as improvised/test or naturalistic/test; "
+                   "default test). Recorded in the result (default: the split the suite scored, else GT's "
+                   "folder name).")
 @click.option("--model", "model", default=None,
               help="Name of the model that made PRED: the row it is ranked under by `dyadbench leaderboard` "
                    "(nothing is run). Default: PRED's name (its parent's for an eval folder's predictions/).")
@@ -86,7 +90,8 @@ def score(pred: Path, gt: Path, suite: str, split: str | None, model: str | None
     click.echo(report.table())
     if out is not None:
         result = external_result(report, model=model or default_model_name(pred), dataset=suite,
-                                 split=split or Path(gt).resolve().name, root=str(gt), predictions=str(pred),
+                                 split=split or report.config.get("split") or Path(gt).resolve().name,
+                                 root=str(gt), predictions=str(pred),
                                  wall_s=time.perf_counter() - started, seed=seed)
         with kept_on_failure(out / "result.json", lambda: atomic.to_json(result.to_dict())):
             json_path = result.write(out / "result.json")

@@ -254,7 +254,8 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
                                 noise_scale=config.noise_scale),
         suite=suite, metrics=dict(report.metrics), scaled=report.scaled, scaling=report.scaling,
         per_clip=list(report.per_item), coverage=dict(report.coverage), excluded=list(report.excluded),
-        notes=overlap_notes(train) + speech_norm_notes(config) + perturbation_notes(config) + list(report.notes)
+        notes=overlap_notes(train) + speech_norm_notes(config) + perturbation_notes(config) + skipped_notes(source)
+        + list(report.notes)
         + ([f"scores reused: this process already scored byte-identical predictions "
             f"(sha256 {reused[:16]})"] if reused else []),
         predictions=None if temporary else str(pred_dir),
@@ -281,6 +282,17 @@ def perturbation_notes(config: ProtocolConfig) -> list[str]:
     return [f"perturbed inputs {describe(config.perturbations)} (dyadbench.protocol.perturbations; scored "
             f"against the unperturbed ground truth): each clip and participant seeded with "
             f"derive_seed({config.seed}, 'perturbation', clip, participant, signal, kind){scale}"]
+
+
+def skipped_notes(source: ClipSource) -> list[str]:
+    """The note of a split whose reader left dialogues out (``describe()["skipped_dyads"]``: e.g. Seamless
+    Interaction dyads with an empty bundle, no movement features or one usable participant), with the count."""
+    info = source.describe()
+    if not info.get("skipped_dyads"):
+        return []
+    skipped, reasons = info["skipped_dyads"], [s["reason"] for s in info.get("skipped", [])]
+    return [f"{skipped} dyad(s) of the split skipped by the reader, not evaluated (`dyadbench data validate` lists "
+            f"each): {'; '.join(reasons[:3])}{' ...' if len(reasons) > 3 else ''}"]
 
 
 _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()
