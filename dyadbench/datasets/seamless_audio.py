@@ -4,7 +4,7 @@
 default Kaiser window, beta 5.0, cut-off at the output Nyquist frequency 8 kHz) and 1-in-3 decimation,
 zero-phase (the filter's delay is compensated), output length ceil(N / 3).
 
-Tested (``tests/test_seamless_audio.py``): a 1 kHz sine keeps its amplitude within 1 % and its frequency
+Tested (``tests/test_seamless.py``): a 1 kHz sine keeps its amplitude within 1 % and its frequency
 (FFT peak) within one bin of 1 Hz; a 10 kHz tone, which would alias to 6 kHz, comes out below 1 % of
 its input RMS (-40 dB).
 """
