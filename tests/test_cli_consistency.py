@@ -113,6 +113,7 @@ def test_every_train_command_spells_data_root_batch_size_and_outputs_alike():
         assert {"--data", "--export"} <= opts, name
 
 
+@pytest.mark.slow  # ~10 s on 2 busy cores; tests/test_sfms_cli.py also trains under --out
 def test_old_out_spelling_trains_the_sfms_tokenizer(tmp_path, monkeypatch):
     """A whole (3-step) run under the old spelling writes the checkpoint where ``--out`` said, with the note."""
     from dyadbench.synth.corpus import make_clips
