@@ -12,8 +12,8 @@ from models.sfms.bundle import load_sfms
 from models.sfms.stream import SFMSStreamingModel
 
 CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
-REPRODUCE = ("dyadbench train sfms-tokenizer --config tiny --out TOK.pt && dyadbench train sfms --config tiny "
-             "--clips 400 --steps 4000 --tokenizer TOK.pt --out models/sfms/checkpoints/sfms-tiny.pt")
+REPRODUCE = ("dyadbench train sfms-tokenizer --config tiny --export TOK.pt && dyadbench train sfms --config tiny "
+             "--clips 400 --steps 4000 --tokenizer TOK.pt --export models/sfms/checkpoints/sfms-tiny.pt")
 
 
 def shipped(dataset: str | None = None) -> Path:

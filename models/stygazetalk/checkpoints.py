@@ -22,9 +22,9 @@ SHIPPED_MODEL = WEIGHTS_DIR / "stygazetalk-tiny-se64-vel-x1.pt"  # SE-64-VEL wei
 SHIPPED_STYLE_ENCODER = WEIGHTS_DIR / "style-encoder-tiny-se64.pt"
 STYLE_MODEL_NAME = "stygazetalk-style"
 MODEL_NAME = "stygazetalk"
-REPRODUCE = ("dyadbench train stygazetalk-style --config tiny-se64 --out runs/sgt/se64.pt && "
+REPRODUCE = ("dyadbench train stygazetalk-style --config tiny-se64 --export runs/sgt/se64.pt && "
              "dyadbench train stygazetalk --config tiny-se64-vel-x1 --style-encoder runs/sgt/se64.pt "
-             "--out runs/sgt/tiny-se64-vel-x1.pt")
+             "--export runs/sgt/tiny-se64-vel-x1.pt")
 
 
 def save_style_model(path: str | Path, model: StyleModel, meta: dict) -> Path:
