@@ -26,8 +26,9 @@ from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import policy
 
 EMBEDDED = DEFAULT_EMBEDDED
-#: --batch default, from benchmarks/results/batched_streaming.md (TIMAR throughput levels off around it).
-DEFAULT_BATCH = 16
+#: --batch default: the largest batch measured in benchmarks/results/batched_streaming.md (TIMAR at n = 7 was
+#: fastest there).
+DEFAULT_BATCH = 8
 
 
 def data_options(f: Callable) -> Callable:
