@@ -1,6 +1,6 @@
 """``--scheduler``: eval, sweep and score on a Dask cluster give the result files of local runs.
 
-A module-wide ``LocalCluster`` of 2 one-thread worker processes (pointed at by address, as an existing
+The three cases that take about 15 s each on 2 busy cores are marked slow. A module-wide ``LocalCluster`` of 2 one-thread worker processes (pointed at by address, as an existing
 cluster would be) serves most cases; ``score`` also starts its own with ``local:2``. Results are compared
 field by field after dropping what differs between any two runs or processes: timing, environment, the
 creation time and the per-process note that scores were reused.
@@ -12,7 +12,6 @@ import json
 import os
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
@@ -67,6 +66,7 @@ def result_files(folder: Path) -> dict[str, Path]:
     return {str(p.relative_to(folder)): p for p in sorted(folder.rglob("*.json"))}
 
 
+@pytest.mark.slow  # about 15 s on 2 busy cores
 def test_a_sweep_on_the_cluster_writes_the_result_files_of_a_local_sweep(cluster, root, tmp_path, capsys):
     args = ["sweep", "--models", "zero,mean-frame", "--splits", "test", "--contexts", "0,2", "--data", root,
             "--clips", "2"]
@@ -83,6 +83,7 @@ def test_a_sweep_on_the_cluster_writes_the_result_files_of_a_local_sweep(cluster
     assert code == 0 and output.count("skip ") == 4, output
 
 
+@pytest.mark.slow  # about 15 s on 2 busy cores
 def test_eval_and_score_on_the_cluster_equal_their_local_runs(cluster, root, tmp_path, capsys):
     common = ["eval", "--model", "mean-frame", "--context", "1", "--data", root, "--clips", "3"]
     assert dyadbench(capsys, *common, "--out", tmp_path / "local")[0] == 0
@@ -169,6 +170,7 @@ def _pid(_item) -> int:
     return os.getpid()
 
 
+@pytest.mark.slow  # about 15 s on 2 busy cores
 def test_cuda_tasks_run_only_on_workers_offering_the_gpu_resource(cluster, tmp_path):
     with pytest.raises(ConfigError, match="no worker of the cluster offers the resource GPU=1"):
         with distributed.connected(cluster.scheduler_address, device="cuda"):
