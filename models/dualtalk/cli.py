@@ -41,9 +41,11 @@ def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, st
     """Train the log-mel DualTalk (tiny) on random 1-8 s windows; released loss, Adam.
 
     \b
-    Reproduces the shipped checkpoint (models/dualtalk/checkpoints/dualtalk-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train dualtalk --steps 2000 --lr 5e-4 --seed 0 \\
+    Reproduces the shipped checkpoints, one per embedded corpus (models/dualtalk/checkpoints/):
+      OMP_NUM_THREADS=1 dyadbench train dualtalk --dataset synthetic --steps 2000 --lr 5e-4 --seed 0 \\
           --export models/dualtalk/checkpoints/dualtalk-tiny.pt
+      OMP_NUM_THREADS=1 dyadbench train dualtalk --dataset synthetic-v2 --steps 2000 --lr 5e-4 --seed 0 \\
+          --export models/dualtalk/checkpoints/dualtalk-tiny-v2.pt
     """
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
     from models.dualtalk.config import preset  # noqa: PLC0415

@@ -169,7 +169,8 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
 
     \b
-    Example (the shipped tiny model; one command line):
+    Example (the shipped tiny model of corpus v1; one command line; for corpus v2 both stages take
+    --dataset synthetic-v2 and it exports models/sfms/checkpoints/sfms-tiny-v2.pt):
       dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
           --export models/sfms/checkpoints/sfms-tiny.pt
     """

@@ -87,9 +87,10 @@ def train_timar(**kwargs) -> None:
     """Train the faithful TIMAR (window positions, turn-level causal attention).
 
     \b
-    Reproduces the shipped checkpoint (models/timar/checkpoints/timar-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train timar --config tiny --stride 4 --epochs 10 --warmup-epochs 0.05 \\
-          --seed 0 --export models/timar/checkpoints/timar-tiny.pt
+    Reproduces the shipped checkpoint of corpus v1 (models/timar/checkpoints/timar-tiny.pt); with
+    --dataset synthetic-v2 --export models/timar/checkpoints/timar-tiny-v2.pt, that of corpus v2:
+      OMP_NUM_THREADS=1 dyadbench train timar --dataset synthetic --config tiny --stride 4 --epochs 10 \\
+          --warmup-epochs 0.05 --seed 0 --export models/timar/checkpoints/timar-tiny.pt
     Multi-GPU: torchrun --nproc_per_node 8 -m dyadbench train timar --config large --device cuda ...
     """
     _run("faithful", **kwargs)
@@ -101,9 +102,9 @@ def train_timar_stream(**kwargs) -> None:
     """Train the streaming-native TIMAR (per-turn sliding band, positions that never shift).
 
     \b
-    Reproduces the shipped checkpoint (models/timar/checkpoints/timar-stream-tiny.pt):
-      OMP_NUM_THREADS=1 dyadbench train timar-stream --config tiny --stride 4 --epochs 10 --warmup-epochs 0.05 \\
-          --seed 0 --export models/timar/checkpoints/timar-stream-tiny.pt
+    Reproduces the shipped checkpoint of corpus v1 (models/timar/checkpoints/timar-stream-tiny.pt):
+      OMP_NUM_THREADS=1 dyadbench train timar-stream --dataset synthetic --config tiny --stride 4 --epochs 10 \\
+          --warmup-epochs 0.05 --seed 0 --export models/timar/checkpoints/timar-stream-tiny.pt
     """
     _run("stream", **kwargs)
 
