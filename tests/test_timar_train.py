@@ -109,7 +109,7 @@ def test_torchrun_environment_initialises_gloo_and_trains(tmp_path, source, monk
 def test_cli_help_lists_every_option():
     result = CliRunner().invoke(train, ["timar", "--help"])
     assert result.exit_code == 0
-    for option in ("--config", "--data", "--epochs", "--resume", "--export", "--out", "--seed", "--clips"):
+    for option in ("--config", "--data", "--epochs", "--resume", "--export", "--run-dir", "--seed", "--clips"):
         assert option in result.output
 
 
