@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import functools
 import pickle
+import traceback
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing.context import BaseContext
 from typing import Callable, Iterator, Sequence, TypeVar
@@ -39,17 +40,28 @@ def _guarded_init(initializer: Callable[..., None] | None, args: tuple) -> None:
         _init_error = exc
 
 
+def _receivable(exc: BaseException) -> bool:
+    """Whether ``exc`` survives the trip back to the caller (pickled and rebuilt)."""
+    try:
+        pickle.loads(pickle.dumps(exc))
+    except Exception:  # noqa: BLE001  (any failure means the caller could not receive it)
+        return False
+    return True
+
+
 def _guarded_call(fn: Callable[[T], R], item: T) -> R:
     if _init_error is not None:
         raise _init_error
     try:
         return fn(item)
     except Exception as exc:
-        try:
-            pickle.loads(pickle.dumps(exc))
-        except Exception:  # noqa: BLE001  (any failure means the caller could not receive it)
-            raise RuntimeError(f"{type(exc).__name__} in a worker process: {exc}") from exc
-        raise
+        if _receivable(exc):
+            raise
+        error = RuntimeError(f"{type(exc).__name__} in a worker process: {exc}")
+        error.worker_traceback = "".join(traceback.format_exception(exc))  # as text: it pickles
+    # raised outside the handler, so it carries no context: a pickler that follows causes and contexts
+    # (Dask's tblib) could not send it either
+    raise error
 
 
 def process_map(fn: Callable[[T], R], items: Sequence[T], *, jobs: int, context: BaseContext,

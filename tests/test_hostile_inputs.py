@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import threading
 import re
 import shutil
 import zipfile
@@ -301,10 +302,13 @@ def _init_fails(message: str) -> None:
 
 
 class _Unpicklable(Exception):
-    """An exception whose constructor does not match its args (a pickled one cannot be rebuilt)."""
+    """An exception that cannot make the trip back: its constructor does not match its args (a pickled one
+    cannot be rebuilt) and it holds a lock (cannot be pickled even where exception reducers are installed,
+    as Dask's tblib does)."""
 
     def __init__(self, a, b):
         super().__init__(f"{a} and {b}")
+        self.lock = threading.Lock()
 
 
 def _raises_unpicklable(item: int) -> int:
