@@ -62,8 +62,6 @@ back-channels). Clip lengths are log-normal with mean 31 s (clipped to 12-62 s).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import numpy as np
 
 from dyadbench.datasets.base import DyadicClip, Participant
@@ -72,8 +70,8 @@ from dyadbench.motion import FPS, SAMPLE_RATE
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth import behaviour
 from dyadbench.synth.speech import speech_signals
-from dyadbench.synth.styles import GENERATOR_VERSION, SPLIT_STATS, Style, split_pool, style_pool, world
-from dyadbench.synth.timeline import Timeline, make_timeline
+from dyadbench.synth.styles import GENERATOR_VERSION, SPLIT_STATS, split_pool, style_pool, world
+from dyadbench.synth.timeline import make_timeline
 
 PARTICIPANTS = ("speaker1", "speaker2")
 MIN_DURATION_S, MAX_DURATION_S = 12.0, 62.0
@@ -88,37 +86,20 @@ def _duration(r: np.random.Generator, mean: float) -> float:
     return float(np.clip(r.lognormal(np.log(mean) - sigma ** 2 / 2, sigma), MIN_DURATION_S, MAX_DURATION_S))
 
 
-@dataclass(frozen=True)
-class ClipPlan:
-    """The draws every corpus version starts a clip with: the clip's generator (for the draws that follow),
-    its style pool, the two people, its length in frames and its turn timeline."""
-
-    rng: np.random.Generator
-    pool_name: str
-    styles: tuple[Style, Style]
-    n_frames: int
-    timeline: Timeline
-
-
-def plan_clip(split: str, index: int, seed: int, duration_s: float | None, version: int | str) -> ClipPlan:
-    """:class:`ClipPlan` of clip ``index`` of ``split`` (deterministic in seed, split, index and ``version``)."""
+def make_clip(split: str, index: int, seed: int = 0, duration_s: float | None = None) -> DyadicClip:
+    """Clip ``index`` of ``split`` (deterministic in seed, split, index and the generator version)."""
     pool_name = split_pool(split)
     stats = SPLIT_STATS[pool_name]
     pool = style_pool(pool_name, seed)
-    r = seeded_rng(seed, split, index, "clip", version)
+    r = seeded_rng(seed, split, index, "clip", GENERATOR_VERSION)
     a, b = r.choice(len(pool), size=2, replace=False)
     styles = (pool[a], pool[b])
     duration = _duration(r, stats.duration_mean_s) if duration_s is None else float(duration_s)
     n_frames = int(round(duration * FPS))
     if n_frames < 1:
         raise ConfigError(f"clip duration must be at least one frame, got {duration_s} s")
-    return ClipPlan(r, pool_name, styles, n_frames, make_timeline(r, n_frames / FPS, stats, styles))
-
-
-def make_clip(split: str, index: int, seed: int = 0, duration_s: float | None = None) -> DyadicClip:
-    """Clip ``index`` of ``split`` (deterministic in seed, split, index and the generator version)."""
-    plan = plan_clip(split, index, seed, duration_s, GENERATOR_VERSION)
-    r, pool_name, styles, n_frames, timeline = plan.rng, plan.pool_name, plan.styles, plan.n_frames, plan.timeline
+    duration = n_frames / FPS
+    timeline = make_timeline(r, duration, stats, styles)
     speech = [speech_signals(r, timeline.tracks[p], styles[p], n_frames, FPS, SAMPLE_RATE) for p in range(2)]
     spont = [behaviour.spontaneous(r, styles[p], speech[p], timeline.tracks[p], timeline.tracks[1 - p], FPS)
              for p in range(2)]

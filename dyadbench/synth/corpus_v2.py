@@ -69,10 +69,11 @@ from dyadbench.errors import ConfigError
 from dyadbench.motion import FPS, SAMPLE_RATE
 from dyadbench.seeding import rng as seeded_rng
 from dyadbench.synth import behaviour, conversation, nodding
-from dyadbench.synth.corpus import PARTICIPANTS, clip_name, plan_clip
+from dyadbench.synth.corpus import PARTICIPANTS, _duration, clip_name
 from dyadbench.synth.signals import causal_response, nod_kernel
 from dyadbench.synth.speech_v2 import Prosody, speech_signals
-from dyadbench.synth.styles import EXP_DIM, Style, world
+from dyadbench.synth.styles import EXP_DIM, SPLIT_STATS, Style, split_pool, style_pool, world
+from dyadbench.synth.timeline import make_timeline
 
 VERSION = 2
 MOOD_EXP, ENGAGE_EXP = 1.0, 2.0  # expression gain per unit mood / engagement
@@ -115,8 +116,17 @@ def head_energy(style: Style) -> float:
 def make_clip(split: str, index: int, seed: int = 0, duration_s: float | None = None,
               dynamics: conversation.Dynamics = conversation.Dynamics()) -> DyadicClip:
     """Clip ``index`` of ``split`` (deterministic in seed, split, index, the switches and the version)."""
-    plan = plan_clip(split, index, seed, duration_s, VERSION)
-    r, pool_name, styles, n, timeline = plan.rng, plan.pool_name, plan.styles, plan.n_frames, plan.timeline
+    pool_name = split_pool(split)
+    stats = SPLIT_STATS[pool_name]
+    pool = style_pool(pool_name, seed)
+    r = seeded_rng(seed, split, index, "clip", VERSION)
+    a, b = r.choice(len(pool), size=2, replace=False)
+    styles = (pool[a], pool[b])
+    duration = _duration(r, stats.duration_mean_s) if duration_s is None else float(duration_s)
+    n = int(round(duration * FPS))
+    if n < 1:
+        raise ConfigError(f"clip duration must be at least one frame, got {duration_s} s")
+    timeline = make_timeline(r, n / FPS, stats, styles)
     tracks = timeline.tracks
     mood = conversation.shared_mood(seeded_rng(seed, split, index, "mood", VERSION), n, FPS, dynamics.mood)
     progress = conversation.convergence(n, FPS, dynamics.contagion)
