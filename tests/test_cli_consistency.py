@@ -12,21 +12,12 @@ import pytest
 from click.testing import CliRunner
 from tqdm import tqdm
 
-from dyadbench.cli import cli, main, warning_summary
+from dyadbench.cli import cli, warning_summary
 from dyadbench.cli.options import check_cfg_scale
 from dyadbench.cli.splits import DATASET_SPLITS
 from dyadbench.errors import InputError
 from dyadbench.registry import DATASETS, MODELS, SUITES
-
-
-def run(capsys, *args):
-    try:
-        main([*map(str, args)])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
+from tests.cli_run import run
 
 
 def test_cfg_scale_is_refused_for_models_without_guidance(capsys, tmp_path):

@@ -8,22 +8,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from dyadbench.cli import main
 from dyadbench.datasets.dualtalk_files import write_gt_npz
 from dyadbench.errors import InputError
 from dyadbench.results import EXTERNAL, load_result
+from tests.cli_run import run
 
 T = 90
-
-
-def run(capsys, *args):
-    try:
-        main([*map(str, args)])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    captured = capsys.readouterr()
-    return code, captured.out, captured.err
 
 
 @pytest.fixture()

@@ -156,15 +156,10 @@ def _undefined_notes(undefined: dict[str, list[str]], n_scored: int) -> list[str
 
 def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], inputs: dict,
          extra: list[str]) -> ScoreReport:
-    rows, excluded, truncated, warnings = [], [], [], []
-    for outcome in map_items(_score_job, jobs_list, jobs=jobs, desc="dualtalk"):
-        warnings += outcome.warnings
-        if len(set(outcome.frames.values())) > 1:
-            truncated.append({"clip": outcome.stem, **outcome.frames, "used": min(outcome.frames.values())})
-        if outcome.excluded is not None:
-            excluded.append({"clip": outcome.stem, "reason": outcome.excluded})
-        else:
-            rows.append({"clip": outcome.stem, **outcome.metrics})
+    outcomes = list(map_items(_score_job, jobs_list, jobs=jobs, desc="dualtalk"))
+    truncated = [{"clip": o.stem, **o.frames, "used": min(o.frames.values())}
+                 for o in outcomes if len(set(o.frames.values())) > 1]
+    rows, excluded, warnings = policy.collect(outcomes)
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     missing = {job.stem: job.partner_missing for job in jobs_list if job.partner is None}

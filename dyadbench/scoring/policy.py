@@ -98,6 +98,20 @@ def extra_notes(extra: list[str], expected: list[str]) -> list[str]:
             f"{shown}{example}"]
 
 
+def collect(outcomes: Iterable) -> tuple[list[dict], list[dict], list[str]]:
+    """(rows, excluded, warnings) of per-item scoring outcomes (each with ``stem``, ``metrics``, ``excluded``
+    and ``warnings``): a row ``{"clip": stem, **metrics}`` per scored item, ``{"clip", "reason"}`` per excluded
+    one, and every warning, in order."""
+    rows, excluded, warnings = [], [], []
+    for outcome in outcomes:
+        warnings += outcome.warnings
+        if outcome.excluded is not None:
+            excluded.append({"clip": outcome.stem, "reason": outcome.excluded})
+        else:
+            rows.append({"clip": outcome.stem, **outcome.metrics})
+    return rows, excluded, warnings
+
+
 def nothing_scored(pred: str | Path | None, excluded: list[dict], extra: list[str], expected: list[str],
                    warnings: Iterable[str | None] = ()) -> InputError:
     """Rule 7: the error when no prediction can be scored, saying why (with the magnitude warnings, which

@@ -91,13 +91,7 @@ def _report(jobs_list: list[Job], *, jobs: int, seed: int, expected: list[str], 
             extra: list[str]) -> ScoreReport:
     layout = LAYOUTS[jobs_list[0].layout]
     keys = suite.keys(layout)
-    rows, excluded, warnings = [], [], []
-    for outcome in map_items(score_item, jobs_list, jobs=jobs, desc=SUITE):
-        warnings += outcome.warnings
-        if outcome.excluded is not None:
-            excluded.append({"clip": outcome.stem, "reason": outcome.excluded})
-        else:
-            rows.append({"clip": outcome.stem, **outcome.metrics})
+    rows, excluded, warnings = policy.collect(map_items(score_item, jobs_list, jobs=jobs, desc=SUITE))
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
     metrics, undefined = {}, {}
