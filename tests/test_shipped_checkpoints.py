@@ -19,7 +19,8 @@ SHIPPED = {
     "synthetic": [("timar", timar_shipped("timar", "synthetic")),
                   ("timar-stream", timar_shipped("timar-stream", "synthetic")),
                   ("sfms", sfms_shipped("synthetic")), ("dualtalk", dualtalk_shipped("synthetic"))],
-    "synthetic-v2": [("sfms", sfms_shipped("synthetic-v2")), ("dualtalk", dualtalk_shipped("synthetic-v2"))],
+    "synthetic-v2": [("timar", timar_shipped("timar", "synthetic-v2")), ("sfms", sfms_shipped("synthetic-v2")),
+                     ("dualtalk", dualtalk_shipped("synthetic-v2"))],
 }
 
 
