@@ -42,7 +42,8 @@ def test_results_md_regenerates_byte_for_byte(at_root, tmp_path):
 def test_results_md_shows_the_committed_leaderboard_values():
     """Cells of RESULTS.md against leaderboards/dualtalk_wide.csv read independently with the csv module."""
     with (ROOT / "leaderboards" / "dualtalk_wide.csv").open(newline="") as f:
-        rows = [r for r in csv.DictReader(f) if (r["source"], r["dataset"], r["split"], r["context"]) == ("dyadbench", "synthetic", "test", "7")]
+        rows = [r for r in csv.DictReader(f)
+                if (r["source"], r["dataset"], r["split"], r["context"]) == ("dyadbench", "synthetic", "test", "7")]
     page = (ROOT / "RESULTS.md").read_text()
     section = page.split("### dualtalk: synthetic test, streaming, n = 7 (dyadbench)")[1].split("\n### ")[0]
     header = next(line for line in section.split("\n") if line.startswith("| column |"))
