@@ -48,6 +48,7 @@ from dyadbench.errors import InputError
 from dyadbench.metrics.columns import ColumnSpec, SuiteColumns, declared
 from dyadbench.motion import LAYOUTS
 from dyadbench.protocol.config import variant_label
+from dyadbench.registry import dataset_label, dataset_order
 from dyadbench.results import results_frame
 
 SETTING = ["source", "dataset", "split", "protocol", "context"]
@@ -255,9 +256,10 @@ def wide_table(long: pd.DataFrame, suite: str = "dualtalk", uncertainty: str = "
     wide = wide.merge(items, on=index, how="left").reindex(columns=index + ["items"] + shown)
     wide = pd.concat([wide, _reference_rows(part, declared(suite))], ignore_index=True)
     wide["rank"] = _ranks(wide, declared(suite))
-    wide = wide.assign(_largest=-wide["items"].astype("float64"), _reference=wide["flags"] == REFERENCE).sort_values(
-        SETTING + ["_largest", "rank_group", "oracle", "_reference", "rank", "model"], kind="stable",
-        na_position="last")
+    wide = wide.assign(_dataset=wide["dataset"].map(dataset_order), _largest=-wide["items"].astype("float64"),
+                       _reference=wide["flags"] == REFERENCE).sort_values(
+        ["source", "_dataset", *SETTING[2:], "_largest", "rank_group", "oracle", "_reference", "rank", "model"],
+        kind="stable", na_position="last")
     return wide[head + shown].reset_index(drop=True)
 
 
@@ -327,7 +329,7 @@ def latex_table(wide: pd.DataFrame, suite: str = "dualtalk", digits: int = 2) ->
     several = False
     for setting, block in wide.groupby(SETTING, sort=False):
         source, dataset, split, protocol, context = setting
-        label = f"{dataset} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
+        label = f"{dataset_label(dataset)} {split}, {protocol}" + (f", $n={context}$" if str(context) else "") + f" ({source})"
         lines.append(rf"\multicolumn{{{len(columns) + 1}}}{{l}}{{\emph{{{latex_escape(label)}}}}} \\")
         sets = list(dict.fromkeys(block["rank_group"]))
         several = several or len(sets) > 1

@@ -32,6 +32,7 @@ from dyadbench.figure_range import ValueRange, off_scale_note, value_range
 from dyadbench.leaderboard import variant_models
 from dyadbench.metrics.columns import declared
 from dyadbench.motion import LAYOUTS, MotionLayout
+from dyadbench.registry import dataset_label
 
 #: Default panels per layout: (component, index within the component).
 DEFAULT_DIMS = {
@@ -179,7 +180,7 @@ def plot_context_curves(long: pd.DataFrame, metrics: list[str], out: str | Path,
                 ax.set_xticks(ticks)
                 ax.set_xlim(ticks[0] - 0.5, ticks[-1] + 0.5)
                 if row == 0:
-                    ax.set_title(f"{data['dataset'].iloc[0]} {split}")
+                    ax.set_title(f"{dataset_label(data['dataset'].iloc[0])} {split}")
                 if row == len(metrics) - 1:
                     ax.set_xlabel("context n (history turns)")
                 if col == 0:
@@ -227,7 +228,8 @@ def plot_bars(long: pd.DataFrame, metrics: list[str], out: str | Path, dataset: 
             for row, metric in enumerate(metrics):
                 rows = data[(data["split"] == split) & (data["metric"] == metric)]
                 _bars(axes[row, col], rows, metric, styles, trivial_labels(series, styles))
-                title = f"{data['dataset'].iloc[0]} {split}" + (f", n = {context}" if context is not None else "")
+                title = f"{dataset_label(data['dataset'].iloc[0])} {split}" + (
+                    f", n = {context}" if context is not None else "")
                 axes[row, col].set_title(title if row == 0 else "")
         return style.save(fig, out)
 

@@ -60,6 +60,22 @@ MODELS = Registry("model")
 DATASETS = Registry("dataset")
 # The embedded corpus a run uses when it names neither --dataset nor --data.
 DEFAULT_EMBEDDED = "synthetic"
+# The embedded corpora's generator versions: tables and figures name each corpus with its version.
+EMBEDDED_VERSIONS = {"synthetic": 1, "synthetic-v2": 2}
+
+
+def dataset_label(name: str) -> str:
+    """How tables and figures name a dataset: an embedded corpus with its version, the default one marked
+    (``synthetic (v1)``, ``synthetic-v2 (v2, default)``); any other dataset by its name."""
+    version = EMBEDDED_VERSIONS.get(name)
+    if version is None:
+        return name
+    return f"{name} (v{version}{', default' if name == DEFAULT_EMBEDDED else ''})"
+
+
+def dataset_order(name: str) -> tuple[bool, str]:
+    """Sort key of datasets in tables: the default embedded corpus first, then by name."""
+    return name != DEFAULT_EMBEDDED, name
 SUITES = Registry("metric suite")
 EVALUATORS = Registry("frozen evaluator")
 

@@ -27,6 +27,7 @@ import pandas as pd
 from dyadbench import strict_json
 from dyadbench.errors import InputError
 from dyadbench.leaderboard import SETTING, long_table, wide_table
+from dyadbench.registry import dataset_label
 
 #: Significant digits of every number on the page.
 DIGITS = 4
@@ -64,7 +65,7 @@ def leaderboard_sections(results: Iterable[Path], paper: Iterable[Path]) -> list
         part = long[long["suite"] == suite]
         better = dict(zip(part["metric"], part["higher_is_better"]))
         wide = wide_table(long, suite)
-        for setting, group in wide.groupby(SETTING, sort=True, dropna=False):
+        for setting, group in wide.groupby(SETTING, sort=False, dropna=False):  # the wide table's order
             lines += _setting_table(suite, dict(zip(SETTING, setting)), group, part, better)
     return lines
 
@@ -72,7 +73,7 @@ def leaderboard_sections(results: Iterable[Path], paper: Iterable[Path]) -> list
 def _setting_table(suite: str, setting: dict, group: pd.DataFrame, long: pd.DataFrame,
                    better: dict) -> list[str]:
     context = "" if setting["context"] in ("", None) else f", n = {setting['context']}"
-    title = f"### {suite}: {setting['dataset']} {setting['split']}, {setting['protocol']}{context} ({setting['source']})"
+    title = f"### {suite}: {dataset_label(setting['dataset'])} {setting['split']}, {setting['protocol']}{context} ({setting['source']})"
     rows = long
     for key in SETTING:
         rows = rows[rows[key].astype("string").fillna("") == str(setting[key])]

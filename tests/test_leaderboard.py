@@ -18,6 +18,7 @@ from dyadbench.leaderboard import TABLE_NAMES, latex_table, long_table, paper_ro
 from dyadbench.protocol.config import ProtocolConfig
 from dyadbench.protocol.interface import ModelOptions
 from dyadbench.protocol.runner import evaluate
+from dyadbench.registry import DEFAULT_EMBEDDED
 from tests.protocol_clips import isolated_cache, make_source  # noqa: F401
 from tests.protocol_expectations import corpus_structure_failures
 
@@ -100,6 +101,26 @@ def test_runs_differing_only_in_speech_normalisation_are_separate_rows(results_d
     assert {"zero", "zero (speech-clip)"} <= set(at_zero["model"])
 
 
+def test_embedded_corpora_are_labelled_with_their_version_and_the_default_comes_first(results_dir, tmp_path):
+    copy = tmp_path / "r"
+    for dataset in ("synthetic", "synthetic-v2"):
+        for path in (results_dir / "handmade").rglob("*.json"):
+            data = json.loads(path.read_text())
+            data["data"]["dataset"] = dataset
+            target = copy / dataset / path.relative_to(results_dir / "handmade")
+            target.parent.mkdir(parents=True, exist_ok=True)
+            target.write_text(json.dumps(data))
+    wide = wide_table(long_table([copy]))
+    other = ({"synthetic", "synthetic-v2"} - {DEFAULT_EMBEDDED}).pop()
+    datasets = list(dict.fromkeys(wide["dataset"]))
+    assert datasets == [DEFAULT_EMBEDDED, other]
+    tex = latex_table(wide)
+    version = {"synthetic": "1", "synthetic-v2": "2"}
+    assert rf"\emph{{{DEFAULT_EMBEDDED} (v{version[DEFAULT_EMBEDDED]}, default) test, streaming" in tex
+    assert rf"\emph{{{other} (v{version[other]}) test, streaming" in tex
+    assert tex.index(f"{DEFAULT_EMBEDDED} (v") < tex.index(f"{other} (v")
+
+
 def test_published_rows_are_the_timar_tables():
     rows = paper_rows(PAPER_ROWS)
     assert set(rows["source"]) == {"paper"} and not rows["oracle"].any()
@@ -175,9 +196,10 @@ def test_committed_leaderboards_are_rebuilt_exactly_from_committed_results(tmp_p
         assert (tmp_path / name).read_bytes() == (REPO / "leaderboards" / name).read_bytes(), name
 
 
-def test_committed_leaderboard_has_every_baseline_at_n_0_3_7_on_test_and_ood():
+@pytest.mark.parametrize("dataset", ["synthetic", "synthetic-v2"])
+def test_committed_leaderboard_has_every_baseline_at_n_0_3_7_on_test_and_ood(dataset):
     long = _committed_long()
-    ours = long[(long["source"] == "dyadbench") & (long["dataset"] == "synthetic")]
+    ours = long[(long["source"] == "dyadbench") & (long["dataset"] == dataset)]
     for split in ("test", "ood"):
         for n in (0, 3, 7):
             models = set(ours.loc[(ours["split"] == split) & (ours["context"] == n), "model"])

@@ -45,7 +45,7 @@ def test_results_md_shows_the_committed_leaderboard_values():
         rows = [r for r in csv.DictReader(f)
                 if (r["source"], r["dataset"], r["split"], r["context"]) == ("dyadbench", "synthetic", "test", "7")]
     page = (ROOT / "RESULTS.md").read_text()
-    section = page.split("### dualtalk: synthetic test, streaming, n = 7 (dyadbench)")[1].split("\n### ")[0]
+    section = page.split("### dualtalk: synthetic (v1) test, streaming, n = 7 (dyadbench)")[1].split("\n### ")[0]
     header = next(line for line in section.split("\n") if line.startswith("| column |"))
     models = [c.strip() for c in header.strip("|").split("|")][1:]
     for metric in ("mse_pose", "rpcc_exp", "fd_exp"):

@@ -99,10 +99,11 @@ def test_neutral_start_generation_runs_750_frames(weights):
     assert out.shape == (1, 750, 56) and torch.isfinite(out).all()
 
 
-def test_shipped_checkpoint_loads_and_records_its_training():
-    model = build_sfms(ModelOptions())
-    assert model.info.weights_path.endswith("sfms-tiny.pt")
+@pytest.mark.parametrize("dataset, stem", [("synthetic", "sfms-tiny.pt"), ("synthetic-v2", "sfms-tiny-v2.pt")])
+def test_shipped_checkpoint_loads_and_records_its_training(dataset, stem):
+    model = build_sfms(ModelOptions(dataset=dataset))
+    assert model.info.weights_path.endswith(stem)
     meta = model.info.config["train_meta"]
-    assert meta["model"] == "sfms" and meta["data"]["dataset"] == "synthetic" and meta["seed"] == 0
+    assert meta["model"] == "sfms" and meta["data"]["dataset"] == dataset and meta["seed"] == 0
     assert model.info.config["tokenizer"]["keyframe_mode"] == "dynamic"
     assert meta["best_val_ce"] < meta["val"][-1]["unigram_ce"]  # beats the class-frequency predictor
