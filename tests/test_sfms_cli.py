@@ -55,7 +55,7 @@ def test_overrides_parse_json_values_and_reject_bad_pairs():
 
 
 def test_unknown_field_or_choice_is_a_config_error(tmp_path, tiny_data):
-    res = CliRunner().invoke(cli.train_tokenizer, ["--set", "mask_sharing=channel", "--out", str(tmp_path / "x.pt")])
+    res = CliRunner().invoke(cli.train_tokenizer, ["--set", "mask_sharing=pixel", "--out", str(tmp_path / "x.pt")])
     assert isinstance(res.exception, ConfigError) and "mask_sharing" in str(res.exception)
 
 

@@ -51,7 +51,7 @@ def load_sfms(path: str | Path) -> tuple[SFMS, dict]:
     payload = load_checkpoint(path, expect_model=PREDICTOR_MODEL)
     tokenizer = tokenizer_from_checkpoint(payload)
     pcfg = from_dict(PredictorConfig, payload["config"]["predictor"])
-    predictor = SFMSPredictor(pcfg, tokenizer.cfg.dim, tokenizer.cfg.n_classes)
+    predictor = SFMSPredictor(pcfg, tokenizer.cfg.dim, tokenizer.cfg.n_classes, tokenizer.cfg.per_channel)
     model = SFMS(tokenizer, predictor)
     model.load_state_dict(payload["model"])
     return model.eval(), payload["meta"]

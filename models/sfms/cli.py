@@ -122,8 +122,12 @@ def _write_log(export: Path, history: dict) -> Path:
 @click.option("--keyframe-mode", type=click.Choice(["dynamic", "static", "dense"]), default=None,
               help="dynamic = learned Gumbel top-k; static = uniform i·⌊T/k⌋; dense = every frame.")
 @click.option("--quantizer", type=click.Choice(["fsq", "vq"]), default=None, help="Keyframe quantiser.")
+@click.option("--mask-sharing", type=click.Choice(["frame", "channel"]), default=None,
+              help="Keyframe allocation (D1; same as --set mask_sharing=...): frame = one mask of k keyframes "
+                   "shared by all channels (the preset's, and the shipped checkpoints'); channel = every channel "
+                   "picks its own k keyframes (the paper's per-channel allocation; classes per frame and channel).")
 def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
-                    device, export, keyframes, keyframe_mode, quantizer) -> None:
+                    device, export, keyframes, keyframe_mode, quantizer, mask_sharing) -> None:
     """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
 
     \b
@@ -135,7 +139,7 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
     torch.set_num_threads(threads)
     extra = _overrides(overrides, steps, batch)
     extra.update({k: v for k, v in (("keyframes", keyframes), ("keyframe_mode", keyframe_mode),
-                                    ("quantizer", quantizer)) if v is not None})
+                                    ("quantizer", quantizer), ("mask_sharing", mask_sharing)) if v is not None})
     if preset not in TOKENIZER_PRESETS:
         raise ConfigError(f"unknown config {preset!r} (known: {', '.join(TOKENIZER_PRESETS)})")
     cfg = tokenizer_preset(preset, **extra)
@@ -167,6 +171,9 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
 def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windows, steps, batch, seed, threads,
                     device, export, tokenizer_path) -> None:
     """SFMS stage 2: train the listening-head predictor on top of a frozen tokenizer.
+
+    The keyframe allocation is the tokenizer's (its mask_sharing, set with `train sfms-tokenizer
+    --mask-sharing`): a per-channel tokenizer gives a predictor of classes per frame and channel.
 
     \b
     Example (the shipped tiny model of corpus v1; one command line; for corpus v2 both stages take

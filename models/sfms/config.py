@@ -8,7 +8,9 @@ as plain dicts in checkpoints and in results (``ModelInfo.config``).
 Decision → field map (decision ids of the SFMS implementation spec, §6):
 
 ====  ============================================================================================
-D1    ``mask_sharing`` = "frame" (one keyframe mask shared by all channels; only value implemented)
+D1    ``mask_sharing``: "frame" = shared allocation (one keyframe mask for all channels; the shipped
+      checkpoints, and every checkpoint saved before "channel" existed) | "channel" = per-channel
+      allocation (each channel its own k keyframes, the paper's §V-B; :mod:`models.sfms.channel_tokens`)
 D2    ``mask_loss_weight`` (α = 0.1; 0 = off), ``mask_target`` = "best_sample" (the best of S samples)
 D3    ``kf_loss_weight`` (keyframe-focused reconstruction MSE, weight 1)
 D4    ``warmup_frac`` (random placements, scorer frozen), ``dense_aux_weight``
@@ -58,7 +60,7 @@ from dyadbench.training.config import config_to_dict as to_dict  # noqa: F401  (
 TOKENIZER_CHOICES = {
     "keyframe_mode": ("dynamic", "static", "dense"),
     "quantizer": ("fsq", "vq"),
-    "mask_sharing": ("frame",),
+    "mask_sharing": ("frame", "channel"),
     "mask_target": ("best_sample",),
     "recon_on": ("all", "best"),
     "scorer_pe": ("sinusoidal", "learned"),
@@ -103,7 +105,7 @@ class TokenizerConfig:
     scorer_pe: str = "sinusoidal"  # D31
     keyframes: int = bounded(7, POSITIVE)  # D11: k
     keyframe_mode: str = "dynamic"  # Table III arms: dynamic (learned top-k) | static (uniform) | dense
-    mask_sharing: str = "frame"  # D1
+    mask_sharing: str = "frame"  # D1: "frame" (shared mask) | "channel" (per-channel allocation)
     quantizer: str = "fsq"  # fsq | vq
     fsq_levels: tuple[int, ...] = (8, 6, 5)  # D10
     vq_codes: int = bounded(256, POSITIVE)
@@ -156,6 +158,11 @@ class TokenizerConfig:
     def n_classes(self) -> int:
         """Per-frame classes: 0 = transition frame, 1 + code = keyframe."""
         return self.n_codes + 1
+
+    @property
+    def per_channel(self) -> bool:
+        """Per-channel keyframe allocation (classes (B, T, d)) rather than one shared mask (classes (B, T))."""
+        return self.mask_sharing == "channel"
 
     @property
     def effective_keyframes(self) -> int:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import torch
 
 from models.sfms.bundle import SFMS
+from models.sfms.channel_tokens import from_rows, to_rows
 
 
 class Roller:
@@ -25,8 +26,8 @@ class Roller:
             self._neutral = self.tok.encode(neutral)[0][:, : self.cfg.past]
 
     def neutral_history(self, batch: int) -> torch.Tensor:
-        """(batch, P) classes of an all-neutral past (the tokenised zero window)."""
-        return self._neutral.expand(batch, -1).clone()
+        """(batch, P) classes of an all-neutral past (the tokenised zero window); (batch, P, d) per channel."""
+        return self._neutral.expand(batch, *self._neutral.shape[1:]).clone()
 
     def _sample(self, logits: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
         if self.greedy:
@@ -40,7 +41,12 @@ class Roller:
         return flat.reshape(probs.shape[:-1])
 
     def _cap(self, hist: torch.Tensor, new: torch.Tensor, logits: torch.Tensor) -> torch.Tensor:
-        """D18: demote the least likely new keyframes to class 0 while the window exceeds the cap."""
+        """D18: demote the least likely new keyframes to class 0 while the window exceeds the cap (per
+        channel when the classes are per channel)."""
+        if new.ndim == 3:
+            d = new.shape[-1]
+            flat_logits = logits.permute(0, 2, 1, 3).reshape(-1, logits.shape[1], logits.shape[-1])
+            return from_rows(self._cap(to_rows(hist), to_rows(new), flat_logits), d)
         cap = self.cfg.keyframe_cap
         p_kf = 1.0 - torch.softmax(logits, -1)[..., 0]
         new = new.clone()
@@ -55,7 +61,8 @@ class Roller:
     @torch.no_grad()
     def step(self, hist: torch.Tensor, speaker: torch.Tensor, audio: torch.Tensor, valid: torch.Tensor,
              n_commit: int, generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """(new classes (B, n_commit), frames (B, n_commit, d)) for one step; ``hist`` (B, ≥P)."""
+        """(new classes (B, n_commit), frames (B, n_commit, d)) for one step; ``hist`` (B, ≥P) (classes
+        (B, n_commit, d) and ``hist`` (B, ≥P, d) with per-channel allocation)."""
         past = hist[:, -self.cfg.past:]
         logits = self.pred(past, speaker, audio, valid)
         new = self._sample(logits, generator)

@@ -11,6 +11,10 @@ finds min over all k-subsets exactly by dynamic programming over the last keyfra
 D_1(a) = head(a), D_m(b) = min_{a<b} D_{m−1}(a) + E(a, b), result min_b D_k(b) + tail(b), with E(a, b) the
 interior error of the segment and head/tail the held ends. No quantiser and no network are involved,
 so the ratio static / optimal is what placement alone can give on the data.
+
+Per-channel allocation (each channel c its own k positions P_c, the same keyframe budget of k values
+per channel): :func:`per_channel_optimal_mse` = (1/(T d)) Σ_c min_{P_c} SSE_c(P_c), each channel's own
+dynamic programme; it can never exceed the shared optimum, whose one P serves every channel.
 """
 
 from __future__ import annotations
@@ -73,6 +77,34 @@ def _optimal_sse(w: np.ndarray, k: int) -> float:
     return best
 
 
+@numba.njit(cache=True)
+def _optimal_positions(w: np.ndarray, k: int) -> np.ndarray:
+    """The positions of one minimiser of the programme of :func:`_optimal_sse` (first minimum on ties)."""
+    t_len = w.shape[0]
+    seg = _segment_errors(w)
+    head, tail = _held_errors(w)
+    cost = head.copy()
+    parent = np.full((k, t_len), -1, dtype=np.int64)
+    for m in range(1, k):
+        nxt = np.full(t_len, np.inf)
+        for b in range(t_len):
+            for a in range(b):
+                v = cost[a] + seg[a, b]
+                if v < nxt[b]:
+                    nxt[b] = v
+                    parent[m, b] = a
+        cost = nxt
+    best, last = np.inf, -1
+    for b in range(t_len):
+        if cost[b] + tail[b] < best:
+            best, last = cost[b] + tail[b], b
+    out = np.empty(k, dtype=np.int64)
+    for m in range(k - 1, -1, -1):
+        out[m] = last
+        last = parent[m, last]
+    return out
+
+
 def _check(window: np.ndarray, k: int) -> np.ndarray:
     w = np.asarray(window, dtype=np.float64)
     if w.ndim != 2 or not 1 <= k <= w.shape[0]:
@@ -95,3 +127,15 @@ def optimal_placement_mse(window: np.ndarray, k: int) -> float:
     """The smallest :func:`interpolation_mse` over every set of ``k`` positions (exact)."""
     w = _check(window, k)
     return float(_optimal_sse(np.ascontiguousarray(w), k) / w.size)
+
+
+def optimal_positions(window: np.ndarray, k: int) -> np.ndarray:
+    """Ascending positions of a k-set reaching :func:`optimal_placement_mse` (the first minimum found)."""
+    w = _check(window, k)
+    return _optimal_positions(np.ascontiguousarray(w), k)
+
+
+def per_channel_optimal_mse(window: np.ndarray, k: int) -> float:
+    """The smallest :func:`interpolation_mse` when every channel places its own ``k`` positions (exact)."""
+    w = _check(window, k)
+    return float(sum(_optimal_sse(np.ascontiguousarray(w[:, c: c + 1]), k) for c in range(w.shape[1])) / w.size)

@@ -32,7 +32,7 @@ def _tensors(batch: PredictorBatch, device: torch.device) -> tuple[torch.Tensor,
 
 @torch.no_grad()
 def tokenise_targets(tokenizer: SFMSTokenizer, listener: torch.Tensor, past: int) -> tuple[torch.Tensor, torch.Tensor]:
-    """(past classes (B, P), future classes (B, F)) of the listener windows."""
+    """(past classes (B, P), future classes (B, F)) of the listener windows ((B, P, d), (B, F, d) per channel)."""
     classes = tokenizer.encode(listener)[0]
     return classes[:, :past], classes[:, past:]
 
@@ -71,7 +71,7 @@ def fit_predictor(cfg: PredictorConfig, tokenizer: SFMSTokenizer, train: list[Di
     tokenizer = tokenizer.to(world.device).eval()
     for p in tokenizer.parameters():
         p.requires_grad_(False)
-    model = SFMSPredictor(cfg, tokenizer.cfg.dim, tokenizer.cfg.n_classes)
+    model = SFMSPredictor(cfg, tokenizer.cfg.dim, tokenizer.cfg.n_classes, tokenizer.cfg.per_channel)
     model.audio_mean.copy_(torch.as_tensor(audio_mean))
     model.audio_std.copy_(torch.as_tensor(audio_std))
     model.to(world.device).train()
