@@ -101,10 +101,13 @@ def test_eval_mime_and_leaderboard_row_and_reference_refusal(root, tmp_path):
     board = runner.invoke(cli, ["leaderboard", str(out / "result.json"), "--out", str(tmp_path / "boards"), "--no-paper"])
     assert board.exit_code == 0, board.output
     assert "mime" in board.output
-    refused = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "timar",
-                                   "--split", "test", "--out", str(tmp_path / "timar")])
+    # timar-stream ships no seamless checkpoint: its FLAME one is refused, naming the file (timar: its own
+    # seamless checkpoint, tests/test_timar_seamless.py)
+    refused = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "timar-stream",
+                                   "--split", "test", "--out", str(tmp_path / "timar-stream")])
     assert refused.exit_code != 0
-    assert "56 dims); the split is seamless (166 dims at 30 fps)" in str(refused.exception)
+    assert ("timar-stream-tiny.pt: this timar-stream checkpoint generates flame56 motion (56 dims at 25 fps); "
+            "the split is seamless") in str(refused.exception)
 
 
 def test_score_cli_seamless_split_result_and_leaderboard(root, tmp_path):

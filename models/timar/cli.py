@@ -23,8 +23,9 @@ OPTIONS = [
                       "with the training mean/std, mapped back at sampling) [default: the config's; tiny: "
                       "per_dim, base/large/huge: none]."),
     click.option("--data", type=click.Path(exists=True, file_okay=False, path_type=Path), default=None,
-                 help="Dataset root holding train/ in the DualTalk layout. Default: the embedded synthetic "
-                      "corpus (generated into the cache on first use)."),
+                 help="Dataset root holding train/ in the DualTalk layout (or that of --dataset, e.g. seamless: "
+                      "the model then generates that layout's motion at its frame rate). Default: the embedded "
+                      "synthetic corpus (generated into the cache on first use)."),
     TRAIN_DATASET,
     click.option("--clips", type=click.IntRange(min=1), default=None,
                  help="Train on the first N clips of the train split only (quick runs)."),
@@ -65,6 +66,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
          device: str, wav2vec_weights: str | None) -> None:
     from dyadbench.outputs import check_cache, check_file, check_folder  # noqa: PLC0415
     from models.timar.config import preset  # noqa: PLC0415
+    from models.timar.layouts import configure_for, layout_named  # noqa: PLC0415
     from models.timar.train import MODEL_NAMES, TrainSettings, train_timar_model  # noqa: PLC0415
 
     run_dir = run_dir or Path("runs") / f"{MODEL_NAMES[variant]}-{config_name}"
@@ -74,6 +76,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
         check_file(export, f"--export {export}")
     cfg = preset(config_name, variant, **({"motion_norm": motion_norm} if motion_norm else {}))
     source = open_train_split(data, dataset, clips)
+    cfg = configure_for(cfg, layout_named(source.load(source.clip_ids()[0]).layout))  # flame56: unchanged
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, lr=lr, warmup_epochs=warmup_epochs, seed=seed,
                              stride_turns=stride_turns, device=device, wav2vec_weights=wav2vec_weights,
                              command=shlex.join(["dyadbench", *sys.argv[1:]]))
@@ -91,6 +94,12 @@ def train_timar(**kwargs) -> None:
     --dataset synthetic-v2 --export models/timar/checkpoints/timar-tiny-v2.pt, that of corpus v2:
       OMP_NUM_THREADS=1 dyadbench train timar --dataset synthetic --config tiny --stride 4 --epochs 10 \\
           --warmup-epochs 0.05 --seed 0 --export models/timar/checkpoints/timar-tiny.pt
+    On the Seamless layout (the model generates its 165 feature columns at 30 fps; see models/timar/layouts.py),
+    the shipped models/timar/checkpoints/timar-tiny-seamless.pt:
+      dyadbench data synth --layout seamless --out out/seamless-synth --split train --clips 200
+      OMP_NUM_THREADS=1 dyadbench train timar --dataset seamless --data out/seamless-synth --config tiny \\
+          --stride 4 --epochs 4 --warmup-epochs 0.05 --seed 0 --run-dir runs/timar-tiny-seamless \\
+          --export models/timar/checkpoints/timar-tiny-seamless.pt
     Multi-GPU: torchrun --nproc_per_node 8 -m dyadbench train timar --config large --device cuda ...
     """
     _run("faithful", **kwargs)

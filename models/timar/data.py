@@ -4,6 +4,10 @@ Each clip is cut to whole turns; the speech frontend runs once per participant, 
 window is ``max_turns`` consecutive turns starting at a multiple of ``stride_turns`` turns, in both
 directions (agent = each participant, user = the other). The data digest hashes the clip ids, motion
 and audio bytes, so a checkpoint records exactly which data it was trained on.
+
+Layouts with a validity column (``seamless``, :mod:`models.timar.layouts`): the model's motion is the
+generated columns, and each participant's validity flags travel with the window (``user_valid``,
+``agent_valid``) so the loss leaves invalid agent frames out and invalid user frames become null tokens.
 """
 
 from __future__ import annotations
@@ -20,17 +24,21 @@ from dyadbench.errors import InputError
 from dyadbench.features.wav2vec import waveform_stats
 from models.timar.config import MOTION_STD_FLOOR, TimarConfig
 from models.timar.frontends import SpeechFrontend
+from models.timar.layouts import timar_layout
 
 
 @dataclass(frozen=True)
 class ParticipantFeatures:
     speech: np.ndarray  # (turns·F, speech_dim) float32
-    motion: np.ndarray  # (turns·F, 56) float32
+    motion: np.ndarray  # (turns·F, motion_dim) float32: the generated columns
+    valid: np.ndarray | None = None  # (turns·F,) bool, layouts with a validity column only
 
 
 def clip_features(clip: DyadicClip, frontend: SpeechFrontend, cfg: TimarConfig) -> dict[str, ParticipantFeatures]:
-    if len(clip.participants) != 2 or clip.layout != "flame56":
-        raise InputError(clip.clip_id, "TIMAR trains on two-participant flame56 clips")
+    layout = timar_layout(cfg.motion_dim)
+    if len(clip.participants) != 2 or clip.layout != layout.name:
+        raise InputError(clip.clip_id, f"this TIMAR configuration trains on two-participant {layout.name} clips, "
+                                       f"not {len(clip.participants)}-participant {clip.layout} clips")
     if clip.fps * cfg.samples_per_turn != clip.sample_rate * cfg.frames_per_turn:
         raise InputError(clip.clip_id, f"{clip.fps} fps / {clip.sample_rate} Hz do not match the model's turn of "
                                        f"{cfg.frames_per_turn} frames / {cfg.samples_per_turn} samples")
@@ -41,8 +49,10 @@ def clip_features(clip: DyadicClip, frontend: SpeechFrontend, cfg: TimarConfig) 
         audio = np.zeros(turns * cfg.samples_per_turn, np.float32)
         usable = min(len(p.audio), len(audio))
         audio[:usable] = p.audio[:usable]
+        motion = np.asarray(p.motion[:frames], dtype=np.float32)
+        valid = None if layout.valid_column is None else motion[:, layout.valid_column] > 0.5
         out[p.name] = ParticipantFeatures(frontend.features(audio, turns, waveform_stats(p.audio)),
-                                          np.asarray(p.motion[:frames], dtype=np.float32))
+                                          motion[:, :layout.motion_dim], valid)
     return out
 
 
@@ -88,10 +98,14 @@ class WindowDataset(torch.utils.data.Dataset):
         index, agent, user, start = self.windows[i]
         stop = start + self.cfg.max_turns * self.cfg.frames_per_turn
         a, u = self.features[index][agent], self.features[index][user]
-        return {"user_speech": torch.from_numpy(u.speech[start:stop]),
+        item = {"user_speech": torch.from_numpy(u.speech[start:stop]),
                 "user_motion": torch.from_numpy(u.motion[start:stop]),
                 "agent_speech": torch.from_numpy(a.speech[start:stop]),
                 "agent_motion": torch.from_numpy(a.motion[start:stop])}
+        if a.valid is not None:
+            item["user_valid"] = torch.from_numpy(u.valid[start:stop])
+            item["agent_valid"] = torch.from_numpy(a.valid[start:stop])
+        return item
 
     def speech_statistics(self) -> tuple[np.ndarray, np.ndarray]:
         """Per-dimension mean and standard deviation of all speech features (normalisation)."""
@@ -100,7 +114,9 @@ class WindowDataset(torch.utils.data.Dataset):
 
     def motion_statistics(self) -> tuple[np.ndarray, np.ndarray]:
         """Per-dimension mean and standard deviation (floored at ``MOTION_STD_FLOOR``) of the motion of
-        every participant and frame of the training clips (``motion_norm = "per_dim"``)."""
-        allm = np.concatenate([f.motion for feats in self.features for f in feats.values()], axis=0)
+        every participant and frame of the training clips (``motion_norm = "per_dim"``); valid frames only
+        in layouts with a validity column."""
+        allm = np.concatenate([f.motion if f.valid is None else f.motion[f.valid]
+                               for feats in self.features for f in feats.values()], axis=0)
         allm = allm.astype(np.float64)
         return allm.mean(0).astype(np.float32), np.maximum(allm.std(0), MOTION_STD_FLOOR).astype(np.float32)

@@ -51,7 +51,14 @@ class LogMelFrontend(SpeechFrontend):
     name = "logmel"
 
     def chunk_features(self, chunk: np.ndarray) -> np.ndarray:
-        return logmel_frames(chunk, self.sample_rate, self.fps, n_mels=self.dim)
+        """Log-mel rows of one chunk. At a frame rate whose hop is not a whole number of samples (30 fps at
+        16 kHz: 533.3) the hop is rounded down (533 samples: frame centres within 0.6 ms of the motion
+        frames' over a 1-s turn) and the first ``frames_per_turn`` rows are kept."""
+        hop = self.sample_rate / self.fps
+        if hop == int(hop):
+            return logmel_frames(chunk, self.sample_rate, self.fps, n_mels=self.dim)
+        rows = logmel_frames(chunk, self.sample_rate, self.sample_rate / int(hop), n_mels=self.dim)
+        return rows[:len(chunk) * self.frames_per_turn // self.samples_per_turn]
 
 
 class Wav2VecFrontend(SpeechFrontend):

@@ -32,8 +32,9 @@ from models.timar.backbone import KV, Block, concat_past
 from models.timar.config import NUM_SPECIAL_TOKENS, TimarConfig
 from models.timar.diffusion import GaussianDiffusion
 from models.timar.head import DiffusionHead
+from models.timar.layouts import FLAME56, timar_layout
 
-GROUPS = (slice(0, 50), slice(50, 53), slice(53, 56))  # exp | jaw | pose: equal loss weights
+GROUPS = FLAME56.loss_groups  # exp | jaw | pose: equal loss weights (flame56; the layout's groups in general)
 
 
 def with_motion_statistics(state: dict, motion_dim: int) -> dict:
@@ -76,6 +77,7 @@ class TimarModel(nn.Module):
         self.train_diffusion = GaussianDiffusion.training(cfg.train_steps)
         self.sample_diffusion = GaussianDiffusion.respaced(cfg.train_steps, cfg.sampling_steps)
         self.agent_slice = agent_motion_slice(cfg.frames_per_turn)
+        self.loss_groups = timar_layout(cfg.motion_dim).loss_groups
 
     def _init_weights(self) -> None:
         for p in (self.special_tokens, self.mask_token, self.null_token, self.pos_embed, self.head_pos_embed):
@@ -214,13 +216,18 @@ class TimarModel(nn.Module):
 
     # --- training ------------------------------------------------------------------------------------
     def forward(self, user_speech: torch.Tensor, user_motion: torch.Tensor, agent_speech: torch.Tensor,
-                agent_motion: torch.Tensor) -> torch.Tensor:
+                agent_motion: torch.Tensor, user_valid: torch.Tensor | None = None,
+                agent_valid: torch.Tensor | None = None) -> torch.Tensor:
         """Training loss of a batch of clips; inputs (B, N·F, ·) cover N whole turns.
 
         One mask ratio per batch r ~ N(1, 0.25) truncated to [0.7, 1]; ceil(N·F·r) agent frames per
         clip masked at random over all turns; each user token dropped to null with p = cfg_dropout;
         the stream variant draws its band uniformly from 0..max_turns-1 per batch. Loss only on masked
         frames.
+
+        ``user_valid`` / ``agent_valid`` (B, N·F) bool (layouts with a validity column, see
+        :mod:`models.timar.layouts`): an invalid user motion frame becomes the null token, an invalid agent
+        frame is [MASK] as input and never a loss target (loss on masked and valid frames; 0 when none).
         """
         cfg = self.cfg
         b, total, _ = agent_motion.shape
@@ -232,11 +239,18 @@ class TimarModel(nn.Module):
 
         masked = self.training_mask(b, total, agent_motion.device)
         user_null = torch.rand(b, turns, 2 * frames, device=agent_motion.device) < cfg.cfg_dropout
+        shown_masked, target = masked, masked
+        if user_valid is not None:
+            user_null[..., frames:] |= ~user_valid.view(b, turns, frames)
+        if agent_valid is not None:
+            shown_masked, target = masked | ~agent_valid, masked & agent_valid
         tokens = self.turn_tokens(per_turn(user_speech), per_turn(user_motion), per_turn(agent_speech),
-                                  per_turn(agent_motion), masked.view(b, turns, frames), user_null)
+                                  per_turn(agent_motion), shown_masked.view(b, turns, frames), user_null)
         band = int(torch.randint(0, cfg.max_turns, (1,)).item()) if cfg.variant == "stream" else None
         z = self.encode(tokens, band)[:, :, self.agent_slice].reshape(b, total, -1)
-        return self.diffusion_loss(z[masked], self.normalize_motion(agent_motion[masked]))
+        if not target.any():  # every masked frame invalid: nothing to learn from this batch
+            return z.sum() * 0.0
+        return self.diffusion_loss(z[target], self.normalize_motion(agent_motion[target]))
 
     def training_mask(self, batch: int, total: int, device: torch.device | str = "cpu") -> torch.Tensor:
         """(batch, total) bool: ceil(total·r) random agent frames per clip, one r per batch."""
@@ -248,7 +262,8 @@ class TimarModel(nn.Module):
         return masked.scatter_(1, order[:, :math.ceil(total * ratio)], True)
 
     def diffusion_loss(self, cond: torch.Tensor, x0: torch.Tensor) -> torch.Tensor:
-        """Mean over tokens of (MSE exp + MSE jaw + MSE pose of the x0 prediction) + VB term.
+        """Mean over tokens of (MSE exp + MSE jaw + MSE pose of the x0 prediction) + VB term (other layouts:
+        the MSE of each of their loss groups, :mod:`models.timar.layouts`).
 
         ``x0`` is in the model's units (normalised motion).
 
@@ -260,7 +275,7 @@ class TimarModel(nn.Module):
         xt = self.train_diffusion.q_sample(x0, t, torch.randn_like(x0))
         out = self.head(xt, t, cond)
         err = (out[:, :x0.shape[1]] - x0) ** 2
-        mse = sum(err[:, g].mean(-1) for g in GROUPS)
+        mse = sum(err[:, g].mean(-1) for g in self.loss_groups)
         return (mse + self.train_diffusion.vb_term(out, x0, xt, t)).mean()
 
     # --- sampling ------------------------------------------------------------------------------------

@@ -29,6 +29,7 @@ from dyadbench.torch_files import load_tensors_only
 from dyadbench.training.checkpoint import check_checkpoint, file_digest
 from models.timar.config import TimarConfig
 from models.timar.frontends import make_frontend
+from models.timar.layouts import TIMAR_LAYOUTS, timar_layout
 from models.timar.model import TimarModel, with_motion_statistics
 from models.timar.official import convert_official, is_official, official_globals
 from models.timar.streaming import BandStream, FaithfulStream
@@ -74,8 +75,20 @@ def load_timar(name: str, weights: Path | None, dataset: str | None = None) -> t
     return model, path, payload["meta"]
 
 
+def check_layout(name: str, model: TimarModel, path: Path, wanted: str | None) -> None:
+    """Refuse a checkpoint whose motion layout is not the split's ``wanted`` layout, naming the file."""
+    have = timar_layout(model.cfg.motion_dim)
+    if wanted is None or wanted == have.name:
+        return
+    hint = (f"train one with `dyadbench train {name} --dataset {wanted} --data ROOT --export PATH`"
+            if wanted in TIMAR_LAYOUTS else f"{name} runs on {', '.join(TIMAR_LAYOUTS)} only")
+    raise InputError(path, f"this {name} checkpoint generates {have.name} motion ({have.motion_dim} dims at "
+                           f"{have.fps:g} fps); the split is {wanted}: {hint}")
+
+
 def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | type[BandStream]):
     model, path, meta = load_timar(name, options.weights, options.dataset)
+    check_layout(name, model, path, options.extra.get("layout"))
     use_cache = bool(options.extra.get("cache", True))
     temperature = float(options.extra.get("temperature", 1.0))
     clamp_variance = bool(options.extra.get("clamp_variance", meta.get("sampler", {}).get("clamp_variance", True)))
@@ -84,7 +97,7 @@ def _build(name: str, options: ModelOptions, stream_cls: type[FaithfulStream] | 
     if options.cfg_scale != 1.0:
         version += f"+null-{guidance_null}"
     info = ModelInfo(name=name, version=version, weights_digest=file_digest(path),
-                     weights_path=str(path),
+                     weights_path=str(path), layout=timar_layout(model.cfg.motion_dim).name,
                      config={**model.cfg.to_dict(), "cfg_scale": options.cfg_scale, "cache": use_cache,
                              "temperature": temperature, "clamp_variance": clamp_variance,
                              "guidance_null": guidance_null, "format": meta.get("format", "native"),

@@ -21,6 +21,11 @@ says what it nulls: ``"current-turn"`` (default, the release) replaces only the 
 user-speech and user-motion frame tokens by the null token, so history turns are the same in both
 branches (their cached keys/values are the conditional branch's); ``"every-turn"`` nulls the user
 frames of every turn in the window (the earlier dyadbench variant, kept as a named option).
+
+Layouts with a validity column (``seamless``, :mod:`models.timar.layouts`): the user motion tokens are the
+generated columns of the partner's motion, and a partner frame whose validity is 0 (the reader's zero-filled
+blocks) becomes the null token in both branches; each predicted frame is the generated columns followed by
+validity 1.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from dyadbench.errors import ConfigError
 from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
 from models.timar.backbone import KV
 from models.timar.frontends import SpeechFrontend
+from models.timar.layouts import timar_layout
 from models.timar.model import TimarModel
 
 GUIDANCE_NULLS = ("current-turn", "every-turn")
@@ -61,6 +67,7 @@ class _TimarStreamBase(StreamingModel):
         if guidance_null not in GUIDANCE_NULLS:
             raise ConfigError(f"guidance_null must be one of {', '.join(GUIDANCE_NULLS)}, got {guidance_null!r}")
         self.model = model.eval().to(device)
+        self.layout = timar_layout(model.cfg.motion_dim)
         self.frontend = frontend
         self.info = info
         self.cfg_scale = float(cfg_scale)
@@ -111,6 +118,8 @@ class _TimarStreamBase(StreamingModel):
         out: list[np.ndarray | None] = [None] * len(turns)
         for members in groups.values():
             frames = self._predict([self._streams[turns[i].stream] for i in members], [turns[i] for i in members])
+            if self.layout.valid_column is not None:  # every generated frame is claimed valid
+                frames = torch.cat([frames, frames.new_ones(*frames.shape[:-1], 1)], dim=-1)
             for i, x in zip(members, frames.cpu().numpy().astype(np.float32)):
                 out[i] = x
         return out
@@ -133,11 +142,14 @@ class _TimarStreamBase(StreamingModel):
 
         us = [self.frontend.features(ua, turns, s.audio_stats[0]) for s, (_, ua, _) in zip(streams, windows)]
         as_ = [self.frontend.features(aa, turns, s.audio_stats[1]) for s, (_, _, aa) in zip(streams, windows)]
-        um = [m[:turns * F] for m, _, _ in windows]
+        um = [m[:turns * F, :self.layout.motion_dim] for m, _, _ in windows]
         user_null = torch.zeros(len(streams), b, turns, 2 * F, dtype=torch.bool, device=self.device)
         user_null[:, 1:, -1:] = True  # the unconditional branch nulls the current (last) turn's user frames ...
         if self.guidance_null == "every-turn":
             user_null[:, 1:] = True  # ... or those of every turn in the window
+        if self.layout.valid_column is not None:  # invalid partner frames: null user-motion tokens
+            invalid = np.stack([np.asarray(m[:turns * F, self.layout.valid_column]) <= 0.5 for m, _, _ in windows])
+            user_null[..., F:] |= torch.from_numpy(invalid).to(self.device).view(len(streams), 1, turns, F)
         return self.model.turn_tokens(t(us), t(um), t(as_), user_null=user_null.flatten(0, 1))
 
     def _as_history(self, x: torch.Tensor) -> torch.Tensor:

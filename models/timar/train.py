@@ -38,6 +38,7 @@ from dyadbench.training.ema import EMA
 from models.timar.config import TimarConfig
 from models.timar.data import WindowDataset, data_digest
 from models.timar.frontends import make_frontend
+from models.timar.layouts import timar_layout
 from models.timar.model import TimarModel
 
 MODEL_NAMES = {"faithful": "timar", "stream": "timar-stream"}
@@ -100,8 +101,9 @@ def train_timar_model(cfg: TimarConfig, source: ClipSource, out_dir: Path, setti
     batch_size = settings.batch_size or cfg.batch_size
     lr = settings.lr if settings.lr is not None else cfg.lr
 
-    dataset = WindowDataset(source, make_frontend(cfg, wav2vec_weights=settings.wav2vec_weights), cfg,
-                            settings.stride_turns, progress=progress and info.is_main)
+    layout = timar_layout(cfg.motion_dim)
+    frontend = make_frontend(cfg, fps=layout.fps, wav2vec_weights=settings.wav2vec_weights)
+    dataset = WindowDataset(source, frontend, cfg, settings.stride_turns, progress=progress and info.is_main)
     digest = data_digest(source)
     torch.manual_seed(derive_seed(settings.seed, "init"))
     model = TimarModel(cfg)
@@ -138,7 +140,8 @@ def train_timar_model(cfg: TimarConfig, source: ClipSource, out_dir: Path, setti
     warmup_steps = settings.warmup_epochs * steps_per_epoch
     out_dir = Path(out_dir)
     checkpoint = out_dir / "checkpoint.pt"
-    meta = {"model": model_name, "config_name": cfg.name, "data_digest": digest, "data": source.describe(),
+    meta = {"model": model_name, "config_name": cfg.name, "layout": layout.name, "data_digest": digest,
+            "data": source.describe(),
             "windows": len(dataset), "seed": settings.seed, "command": settings.command,
             "settings": asdict(settings), "world_size": info.world_size}
 
