@@ -29,6 +29,16 @@ the script's (which has imported everything and holds no data), one file at a ti
   With ``--jobs 1`` a score run first scores one random agent, untimed, so it times scoring and not the
   compilation of the metrics' numba code (its memory is in the peak); with more jobs each worker compiles
   on its first agent, inside the timed run.
+- **Dask** (``--scheduler local:N``; ``none`` skips): the same reads and scores through a ``LocalCluster``
+  of N one-thread worker processes (:func:`dyadbench.distributed.connected`, as ``--scheduler local:N``
+  does), started in the phase's process and not timed (its start is reported). *read*: the usable dyads in
+  chunks of ``--dask-chunk``, one task each (:func:`dyadbench.distributed.submit`): a worker re-opens the
+  split at the same path (:class:`~dyadbench.distributed.SplitOnWorker`, what ``eval --scheduler`` does
+  with its chunks of clips) and loads its dyads one at a time. *score*: ``score_paths`` with ``jobs`` = N
+  under the cluster, so the per-agent tasks (each reading its prediction file and two bundles) run on the
+  workers (``score --scheduler``), on the same ``--score-dyads`` predictions as the one-machine run.
+  Peak memory: the client's (its process, which also runs Dask's scheduler) and the largest worker's
+  (``ru_maxrss`` read on each worker before the cluster closes; each worker imports the libraries itself).
 
 Peak memory: ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` of the phase's process (peak resident set, KiB
 on Linux: interpreter, libraries and data), and with ``--jobs`` > 1 the largest scoring worker's
@@ -73,8 +83,47 @@ def _peak_kib() -> dict[str, int]:
             "children": resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss}
 
 
-def _run_phase(phase: str, root: Path, limit: int | None, pred: Path | None, jobs: int) -> dict:
+def _read_dyads(source: SeamlessSource, ids: list[str]) -> int:
+    """On a worker: load each dyad of ``ids``, one at a time; participant bundles read."""
+    return sum(len(source.load(clip_id).participants) for clip_id in ids)
+
+
+def _worker_peak_kib() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+
+
+def _run_dask(phase: str, root: Path, pred: Path | None, scheduler: str, chunk: int) -> dict:
+    """One phase through a local Dask cluster (see the module docstring): its start untimed, then the work."""
+    from dyadbench import distributed  # noqa: PLC0415  (Dask is imported only here)
+
+    started = time.perf_counter()
+    with distributed.connected(scheduler) as cluster:
+        start_s = time.perf_counter() - started
+        if phase == "dask-read":
+            source = SeamlessSource(root, SPLIT)
+            ids = source.clip_ids()  # discovery on the client, measured on its own above
+
+            def read() -> int:
+                futures = [distributed.submit(_read_dyads, source, ids[i:i + chunk]) for i in range(0, len(ids), chunk)]
+                return sum(f.result() for f in futures)
+            files, seconds, cpu = timed(read)
+            result = {"files": files, "seconds": seconds, "cpu_s": cpu, "tasks": -(-len(ids) // chunk)}
+        else:
+            report, seconds, cpu = timed(lambda: score_paths(pred, root, split=SPLIT, jobs=cluster.slots))
+            result = {"files": len(report.per_item) + len(report.excluded), "scored": len(report.per_item),
+                      "excluded": len(report.excluded), "seconds": seconds, "cpu_s": cpu,
+                      "expected": report.coverage["expected"], "fd_expression": report.metrics["fd_expression"],
+                      "frames_excluded": report.coverage["frames_excluded"]}
+        workers = cluster.client.run(_worker_peak_kib)
+    return {**result, "cluster_start_s": start_s, "workers": len(workers),
+            "largest_worker_kib": max(workers.values())}
+
+
+def _run_phase(phase: str, root: Path, limit: int | None, pred: Path | None, jobs: int,
+               scheduler: str | None = None, chunk: int = 100) -> dict:
     """One measured phase in this process (see the module docstring)."""
+    if phase.startswith("dask-"):
+        return _run_dask(phase, root, pred, scheduler, chunk)
     if phase == "imports":
         return {"files": 0, "seconds": 0.0}
     if phase == "discover":
@@ -119,8 +168,9 @@ def _forked(fn, *args):
     return value, peak
 
 
-def _measure(phase: str, root: Path, *, limit: int | None = None, pred: Path | None = None, jobs: int = 1) -> dict:
-    result, peak = _forked(_run_phase, phase, root, limit, pred, jobs)
+def _measure(phase: str, root: Path, *, limit: int | None = None, pred: Path | None = None, jobs: int = 1,
+             scheduler: str | None = None, chunk: int = 100) -> dict:
+    result, peak = _forked(_run_phase, phase, root, limit, pred, jobs, scheduler, chunk)
     return {**result, "peak_kib": peak}
 
 
@@ -172,13 +222,17 @@ def _size_mib(root: Path) -> float:
               help="Usable dyads with predictions in the large score run (both agents of each scored).")
 @click.option("--jobs", "-j", default=1, show_default=True, type=click.IntRange(min=1),
               help="Scoring processes (and generation processes on the first run).")
+@click.option("--scheduler", default="local:2", show_default=True,
+              help="Dask cluster of the distributed read and score runs (local:N), or 'none' to skip them.")
+@click.option("--dask-chunk", default=100, show_default=True, type=click.IntRange(min=1),
+              help="Dyads per task of the distributed read.")
 @click.option("--seed", default=0, show_default=True, help="Seed of the generated split and of the scorer.")
 @click.option("--cache", default=None, type=click.Path(file_okay=False, path_type=Path),
               help="Where the generated split is kept. Default: <dyadbench cache>/bench-seamless-scale.")
 @click.option("--out", default=RESULTS / "seamless_scale", show_default=True, type=click.Path(path_type=Path),
               help="Result to write (.json and .md).")
-def main(dyads: int, seconds: float, small: int, score_dyads: int, jobs: int, seed: int, cache: Path | None,
-         out: Path) -> None:
+def main(dyads: int, seconds: float, small: int, score_dyads: int, jobs: int, scheduler: str, dask_chunk: int,
+         seed: int, cache: Path | None, out: Path) -> None:
     """Print files/s and peak memory of streaming discovery, reading and scoring of a synthetic split."""
     say = (transcript := Transcript()).say
     root, _ = _forked(_split, cache or cache_dir() / "bench-seamless-scale", dyads, seconds, seed, jobs)
@@ -188,6 +242,12 @@ def main(dyads: int, seconds: float, small: int, score_dyads: int, jobs: int, se
     for n in (small, score_dyads):
         runs.append((f"score, {n} dyads with predictions, jobs {jobs}", "score",
                      {"pred": _forked(_predictions, root, n)[0], "jobs": jobs}))
+    score_run = len(runs) - 1  # the one-machine run the summary lines describe
+    if scheduler != "none":
+        runs += [(f"read, whole split, Dask {scheduler} ({dask_chunk} dyads per task)", "dask-read",
+                  {"scheduler": scheduler, "chunk": dask_chunk}),
+                 (f"score, {score_dyads} dyads with predictions, Dask {scheduler}", "dask-score",
+                  {"pred": runs[score_run][2]["pred"], "scheduler": scheduler})]
     rows = []
     for name, kind, kwargs in runs:
         result = _measure(kind, root, **kwargs)
@@ -204,23 +264,37 @@ def main(dyads: int, seconds: float, small: int, score_dyads: int, jobs: int, se
     for row in rows[1:]:
         peak = row["peak_kib"]["self"] / 1024
         worker = f"{row['peak_kib']['children'] / 1024:.0f}" if jobs > 1 and row["phase"] == "score" else "-"
+        if row["phase"].startswith("dask-"):
+            worker = f"{row['largest_worker_kib'] / 1024:.0f}"
         say(f"| {row['run']} | {row['files']} | {row['seconds']:.1f} | {row['files'] / row['seconds']:.1f} | "
             f"{peak:.0f} | {peak - floor:.0f} | {worker} |")
     say(f"\nimports only: peak RSS {floor:.0f} MiB (the floor of every run).")
     say("files: participant bundles found (discover), participant bundles read with speech resampled to 16 kHz "
         "(read; discovery not timed), agents with predictions, each one prediction file and two bundles (score; "
-        f"discovery of the whole split timed). The score runs pair the whole split ({rows[-1]['expected']} agents "
-        f"expected) and score the agents with predictions (mime: the partner's features); "
-        f"{rows[-1]['excluded']} of the large run's {rows[-1]['files']} had fewer than 40 frames valid for both "
-        "participants and were excluded by the suite.")
-    total_agents = rows[-1]["expected"]
-    rate = rows[-1]["files"] / rows[-1]["seconds"]
+        f"discovery of the whole split timed). The score runs pair the whole split "
+        f"({rows[score_run]['expected']} agents expected) and score the agents with predictions (mime: the "
+        "partner's features); "
+        f"{rows[score_run]['excluded']} of the large run's {rows[score_run]['files']} had fewer than 40 frames valid "
+        "for both participants and were excluded by the suite.")
+    if scheduler != "none":
+        dread, dscore = rows[-2], rows[-1]
+        same = dscore["fd_expression"] == rows[score_run]["fd_expression"]
+        say(f"Dask ({scheduler}, {dscore['workers']} one-thread worker processes on this machine): cluster start "
+            f"{dread['cluster_start_s']:.1f} s and {dscore['cluster_start_s']:.1f} s, not timed; the read ran "
+            f"{dread['tasks']} tasks; the score run scored the same {dscore['files']} agents as the one-machine "
+            f"run, FD expression {'equal' if same else 'DIFFERENT'} "
+            f"({dscore['fd_expression']!r} vs {rows[score_run]['fd_expression']!r}). 'peak RSS' of a Dask run is "
+            "the client's (it also runs the scheduler), 'largest worker' the largest worker process's.")
+    rows_summary = rows[score_run]
+    total_agents = rows_summary["expected"]
+    rate = rows_summary["files"] / rows_summary["seconds"]
     say(f"at the large score run's rate, all {total_agents} agents of the split: about {total_agents / rate:.0f} s "
         f"with jobs {jobs}.")
     say(f"\npeak RSS: ru_maxrss of a process forked per run (interpreter, libraries and data); 'largest worker' "
-        f"with --jobs > 1. Total wall time of the runs: {time.perf_counter() - started:.0f} s.")
+        f"with --jobs > 1 and with Dask (where each worker compiles the metrics' numba code on its first agent, "
+        f"inside the timed run). Total wall time of the runs: {time.perf_counter() - started:.0f} s.")
     data = {"dyads": dyads, "seconds_per_dyad": seconds, "split": SPLIT, "disk_mib": _size_mib(root),
-            "jobs": jobs, "load_average_end": load, "runs": rows}
+            "jobs": jobs, "scheduler": scheduler, "load_average_end": load, "runs": rows}
     print("wrote", *write_result(out, transcript.text(), seed=seed, data=data))
 
 
