@@ -2,7 +2,8 @@
 
 Both load a checkpoint written by ``dyadbench train timar`` / ``timar-stream`` (or by ``dyadbench weights
 convert``): ``options.weights`` if given, else the tiny checkpoint shipped with the package
-(``models/timar/checkpoints/``). ``timar`` also takes the released TIMAR checkpoint, converted in memory
+(``models/timar/checkpoints/``, :mod:`dyadbench.shipped`; a checkpoint whose motion layout is not the split's,
+:mod:`models.timar.layouts`, is refused naming the file). ``timar`` also takes the released TIMAR checkpoint, converted in memory
 (:mod:`models.timar.official`); the result then records the official file's digest and
 ``"format": "official"``. Every file is read with ``torch.load(weights_only=True)`` (only the globals
 the release's format needs are allowed). Weights converted from the release sample as the release does
