@@ -12,7 +12,7 @@ import click
 from dyadbench.cli.options import SEED, deprecated_alias, real, required
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
-from models.stygazetalk.config import CHECKPOINT_SELECTIONS
+from models.stygazetalk.config import CHECKPOINT_SELECTIONS, STYLE_INPUTS
 
 THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1; results can differ in the last bits with more)."
 DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
@@ -115,6 +115,10 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @click.option("--selection", type=click.Choice(list(CHECKPOINT_SELECTIONS)), default=None,
               help="Override which weights are kept: lowest validation L_gen (preset, D27), lowest validation "
                    "MSE alone (val-mse: one criterion whatever --lam), or the final step.")
+@click.option("--style-input", type=click.Choice(list(STYLE_INPUTS)), default=None,
+              help="Override the training style window (D7): motion-window = the motion inputs (the paper's "
+                   "literal reading, covers the targets), past = the M frames before the first scored target "
+                   "(leak-free, as at inference), preceding = the M frames before the motion inputs.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
               help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
@@ -122,8 +126,8 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 @deprecated_alias("--out", "--export", "export", type=click.Path(dir_okay=False, path_type=Path))
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
                     val_split: str, steps: int | None, batch: int | None, lam: float | None,
-                    rollout_prob: float | None, seed: int | None, selection: str | None, threads: int,
-                    export: Path) -> None:
+                    rollout_prob: float | None, seed: int | None, selection: str | None, style_input: str | None,
+                    threads: int, export: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The kept weights are those with the lowest teacher-forced validation loss (the preset's selection),
@@ -135,13 +139,14 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     from models.stygazetalk.checkpoints import load_style_model, save_system, system_from_style
     from models.stygazetalk.config import get_generator_config
     from models.stygazetalk.data import load_segments
-    from models.stygazetalk.train_generator import train_generator as fit
+    from models.stygazetalk.train_generator import style_history, train_generator as fit
 
     check_cache()
     check_file(export, f"--export {export}")
     torch.set_num_threads(threads)
     cfg = _overrides(get_generator_config(config_name), steps=steps, batch=batch, lam=lam,
-                     rollout_prob=rollout_prob, seed=seed, checkpoint_selection=selection).validate()
+                     rollout_prob=rollout_prob, seed=seed, checkpoint_selection=selection,
+                     style_input=style_input).validate()
     style, style_digest = None, None
     if cfg.style:
         if style_path is None:
@@ -150,7 +155,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
         style, _ = load_style_model(style_path)
         style_digest = file_digest(style_path)
     system = system_from_style(cfg, style)
-    pre = cfg.window if cfg.style_input == "preceding" else 0
+    pre = style_history(cfg)
     train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
     train = load_segments(train_src, cfg.angle_limit_deg, cfg.window + 1 + pre)
     val = load_segments(val_src, cfg.angle_limit_deg, cfg.window + 1 + pre)

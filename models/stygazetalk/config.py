@@ -17,6 +17,7 @@ from dyadbench.training.config import config_from_dict, config_to_dict  # noqa: 
 
 MOTION_DIM = 7  # D1: [head_pitch, head_yaw, head_roll, L_pitch, L_yaw, R_pitch, R_yaw], degrees
 CHECKPOINT_SELECTIONS = ("val-loss", "val-mse", "last")  # D27 and the two alternatives
+STYLE_INPUTS = ("motion-window", "preceding", "past")  # D7 (literal) and the two windows that read no target
 CHANNELS = ("head_pitch", "head_yaw", "head_roll", "left_pitch", "left_yaw", "right_pitch", "right_yaw")
 
 
@@ -107,7 +108,10 @@ class GeneratorConfig:
     motion_encoder: str = "linear"  # D6
     style: bool = True  # False = Base (Z is 2d)
     d_s: int = 64
-    style_input: str = "motion-window"  # D7: SE reads the motion-input window ("preceding": M before)
+    # D7: SE reads the motion-input window (literal; covers M-1 targets in training, unlike inference);
+    # "preceding": the M frames before it; "past" (leak-free, as at inference): the M frames just before the
+    # first frame the loss scores (train_generator.style_window)
+    style_input: str = "motion-window"
     freeze_style_encoder: bool = True  # D26
     backbone: str = "lstm"  # "lstm" | "transformer" (TFM, D29)
     lstm_layers: int = 3  # D17
@@ -171,8 +175,9 @@ class GeneratorConfig:
             raise ConfigError(f"{self.name}: backbone must be lstm or transformer, got {self.backbone!r}")
         if self.audio_features not in ("logmel", "wav2vec"):
             raise ConfigError(f"{self.name}: audio_features must be logmel or wav2vec")
-        if self.style_input not in ("motion-window", "preceding"):
-            raise ConfigError(f"{self.name}: style_input must be motion-window or preceding")
+        if self.style_input not in STYLE_INPUTS:
+            raise ConfigError(f"{self.name}: style_input must be one of {', '.join(STYLE_INPUTS)}, "
+                              f"got {self.style_input!r}")
         if self.loss_outputs not in ("all", "last-n"):
             raise ConfigError(f"{self.name}: loss_outputs must be all or last-n")
         if self.decoding not in ("mean", "sample") or self.sample_dims not in ("gaze", "all"):

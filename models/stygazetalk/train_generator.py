@@ -1,7 +1,10 @@
 """Stage 2: teacher-forced generator training (spec §2.7, §2.9) with the style encoder frozen (D26).
 
 One step (own notation of the spec): a window of M+1 ground-truth frames x_{u−1..u+M−1}; inputs
-x_{u−1..u+M−2}, targets x_{u..u+M−1}; s = SE(inputs) (D7) or SE(the M frames before, "preceding");
+x_{u−1..u+M−2}, targets x_{u..u+M−1}; s = SE(inputs) (D7, the literal reading: the style window covers
+M−1 targets), SE(the M frames before the inputs, "preceding") or SE(the M frames just before the first scored
+target, "past": never a target, and with ``loss_outputs="last-n"`` exactly the inference window, see
+:func:`style_window`);
 loss λ·MSE + (1−λ)·velocity-MSE with x_{u−1} as the predecessor of the first output (D20).
 Adam with cosine decay, gradient clipping; the weights with the lowest validation L_gen are kept (D27), or
 those with the lowest validation L_mse ("val-mse": one criterion for every λ), or the final ones.
@@ -48,23 +51,68 @@ class GeneratorTrainLog(TrainLog):
     train_windows: int = 0
 
 
+def first_scored(cfg: GeneratorConfig) -> int:
+    """Index of the first output step the loss covers: 0 (all M outputs) or W (the last N, D8)."""
+    return 0 if cfg.loss_outputs == "all" else cfg.warmup
+
+
+def style_history(cfg: GeneratorConfig) -> int:
+    """Frames a bank row must hold before x_{u−1} for the style window (the bank's ``pre``).
+
+    "motion-window": 0; "preceding": M (x_{u−1−M..u−2}); "past": the window x_{u+f−M..u+f−1} before the
+    first scored target x_{u+f} (f = :func:`first_scored`) starts u+f−M, i.e. max(0, M − f − 1) frames
+    before x_{u−1}.
+    """
+    if cfg.style_input == "preceding":
+        return cfg.window
+    if cfg.style_input == "past":
+        return max(0, cfg.window - first_scored(cfg) - 1)
+    return 0
+
+
+def style_window(cfg: GeneratorConfig, motion: torch.Tensor) -> torch.Tensor:
+    """The M normalised frames the style encoder reads in training, from bank rows (B, pre+M+1, 7).
+
+    A row holds x_{u−1−pre}..x_{u+M−1}; the targets are x_{u..u+M−1} (the loss scores x_{u+f..u+M−1}).
+
+    - "motion-window" (D7, literal): the motion inputs x_{u−1..u+M−2}, M−1 of which are targets.
+    - "preceding": x_{u−1−M..u−2}, the M frames before the inputs.
+    - "past" (leak-free, as at inference): x_{u+f−M..u+f−1}, the M frames just before the first scored
+      target. At inference s = SE(x_{t−M..t−1}) for new frames t.. = u+W..; with ``loss_outputs="last-n"``
+      (f = W) the training window is exactly that one; with "all" (f = 0) it ends at x_{u−1}.
+    """
+    m, pre = cfg.window, motion.shape[1] - cfg.window - 1
+    if pre < style_history(cfg):
+        raise ValueError(f"{cfg.name}: style_input={cfg.style_input!r} needs {style_history(cfg)} frames before "
+                         f"x_(u-1) in each bank row, got {pre}")
+    if cfg.style_input == "motion-window":
+        return motion[:, pre:-1]
+    if cfg.style_input == "preceding":
+        return motion[:, :m]
+    end = pre + first_scored(cfg)  # row index of x_{u+f−1}, exclusive end = end + 1
+    return motion[:, end + 1 - m:end + 1]
+
+
 def window_loss(system: StyGazeTalkSystem, motion: torch.Tensor, audio: torch.Tensor,
                 rollout: bool = False) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
     """Loss of a batch of bank windows: motion (B, pre+M+1, 7), audio (B, M, F), both normalised."""
     cfg = system.cfg
-    m, pre = cfg.window, motion.shape[1] - cfg.window - 1
+    pre = motion.shape[1] - cfg.window - 1
     window = motion[:, pre:]  # x_{u-1} .. x_{u+M-1}
     x_in, target = window[:, :-1], window[:, 1:]
-    style_window = x_in if cfg.style_input == "motion-window" else motion[:, :m]
-    style = system.style(style_window)
+    style = system.style(style_window(cfg, motion))
     pred = system.generator(audio, x_in, style, free_from=cfg.warmup + 1 if rollout else None)
-    first = 0 if cfg.loss_outputs == "all" else cfg.warmup  # D8
+    first = first_scored(cfg)  # D8
     return generator_loss(pred[:, first:], target[:, first:], x_in[:, first:first + 1], cfg.lam)
 
 
-def banks_for(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment]) -> tuple[WindowBank, WindowBank]:
+def banks_for(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment],
+              history: int | None = None) -> tuple[WindowBank, WindowBank]:
+    """Train (grid stride) and val (stride N) window banks. ``history`` holds more frames before x_{u−1}
+    than the style window needs (fewer, later window starts), so that arms with different style windows
+    can train on the same windows; None = what the style window needs."""
     cfg = system.cfg
-    pre = cfg.window if cfg.style_input == "preceding" else 0
+    pre = style_history(cfg) if history is None else max(history, style_history(cfg))
     kwargs = dict(window=cfg.window, pre=pre, motion_norm=system.motion_norm.np,
                   audio_features=system.audio_window)
     return (build_window_bank(train, stride=cfg.feature_grid_stride, desc="train windows", **kwargs),
@@ -84,10 +132,10 @@ def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size:
     system.eval()
     residuals = []
     for lo in range(0, len(bank), batch):
-        window = torch.from_numpy(bank.motion[lo:lo + batch, -(system.cfg.window + 1):])
+        rows = torch.from_numpy(bank.motion[lo:lo + batch])
+        window = rows[:, -(system.cfg.window + 1):]
         x_in, target = window[:, :-1], window[:, 1:]
-        style = system.style(x_in if system.cfg.style_input == "motion-window"
-                             else torch.from_numpy(bank.motion[lo:lo + batch, :system.cfg.window]))
+        style = system.style(style_window(system.cfg, rows))
         pred = system.generator(torch.from_numpy(bank.audio[lo:lo + batch]), x_in, style)
         residuals.append((target - pred).reshape(-1, target.shape[-1]))
     r = torch.cat(residuals)
@@ -111,14 +159,16 @@ def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
 
 
 def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment], *,
-                    progress: bool = True) -> GeneratorTrainLog:
-    """Train ``system.generator`` in place (normalisers and style encoder must already be set)."""
+                    progress: bool = True, history: int | None = None) -> GeneratorTrainLog:
+    """Train ``system.generator`` in place (normalisers and style encoder must already be set).
+
+    ``history``: see :func:`banks_for` (None: the windows the style input needs)."""
     cfg = system.cfg
     torch.manual_seed(derive_seed("stygazetalk-generator", cfg.seed))
     if system.style_encoder is None:  # Base: no stage-1 checkpoint carries the statistics
         system.motion_norm.load_state_dict(ZScore.fit(stacked_motion(train)).state_dict())
     fit_audio_norm(system, train)
-    train_bank, val_bank = banks_for(system, train, val)
+    train_bank, val_bank = banks_for(system, train, val, history)
     rng = np.random.default_rng(derive_seed("stygazetalk-generator-batches", cfg.seed))
     params = [p for p in system.generator.parameters() if p.requires_grad]
     opt = torch.optim.Adam(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
