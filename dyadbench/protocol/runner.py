@@ -13,10 +13,15 @@ too.
 Scores are memoised within a process by a digest of the scored arrays (:func:`score_items`), so a sweep
 scores the byte-identical predictions of a history-free model once across context lengths; streaming
 and timing are always run.
+Memory: clips are streamed one at a time (``batch`` directions, or runs of clips per worker), and a suite
+that scores item by item (``STREAMS_ITEMS``, :mod:`dyadbench.scoring.stored`; the DualTalk/TIMAR suite)
+gets each direction as a :class:`~dyadbench.scoring.stored.StoredItem` read back from its ``.npy`` and the
+source when it is scored (the digest is taken while streaming), so no split of predictions is held whole.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import importlib
 import os
@@ -35,6 +40,7 @@ import numpy as np
 from tqdm import tqdm
 
 from dyadbench import atomic
+from dyadbench.arrays import load_npy
 from dyadbench.datasets.base import ClipSource
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import LAYOUTS
@@ -51,6 +57,7 @@ from dyadbench.registry import DATASETS, MODELS
 from dyadbench.results import (DataRecord, EvalResult, ModelRecord, ProtocolRecord, TimingRecord, environment,
                                utc_now)
 from dyadbench.scoring.report import ScoreItem
+from dyadbench.scoring.stored import StoredItem, streams_items
 from dyadbench.workers import process_map
 
 #: Metric suite of each motion layout (module dyadbench.scoring.<suite> provides score_arrays).
@@ -68,6 +75,8 @@ class _Streamed:
 
     output: StreamOutput
     item: ScoreItem
+    clip_id: str
+    agent: str
 
 
 def build_model(name: str, options: ModelOptions) -> StreamingModel | OfflineModel:
@@ -85,13 +94,25 @@ def run_direction(model: StreamingModel | OfflineModel, clip, agent: str, config
     return run_offline(model, clip, agent, config)
 
 
-def _streamed(clip, p, result: StreamOutput, keep_audio: bool) -> _Streamed:
+def _score_item(clip, p, stem: str, pred: np.ndarray, keep_audio: bool) -> ScoreItem:
+    """What the suite scores of agent ``p`` of (the unperturbed) ``clip`` given its prediction ``pred``."""
     partner = clip.partner_of(p.name)
-    return _Streamed(result, ScoreItem(
-        stem=result.stem, pred=result.motion, gt=np.asarray(p.motion, np.float32),
+    return ScoreItem(
+        stem=stem, pred=pred, gt=np.asarray(p.motion, np.float32),
         partner=np.asarray(partner.motion, np.float32) if partner is not None else None,
         audio=np.asarray(p.audio, np.float32) if keep_audio else None, identity=p.identity,
-        fps=clip.fps, sample_rate=clip.sample_rate))
+        fps=clip.fps, sample_rate=clip.sample_rate)
+
+
+def _streamed(clip, p, result: StreamOutput, keep_audio: bool) -> _Streamed:
+    return _Streamed(result, _score_item(clip, p, result.stem, result.motion, keep_audio), clip.clip_id, p.name)
+
+
+def read_back(source: ClipSource, clip_id: str, agent: str, path: Path, keep_audio: bool) -> ScoreItem:
+    """The :class:`ScoreItem` of a direction whose prediction was written to ``path``: the same arrays as the
+    one built while streaming (the file holds the float32 prediction; the clip is read again from ``source``)."""
+    clip = source.load(clip_id)
+    return _score_item(clip, clip.participant(agent), path.stem, load_npy(path), keep_audio)
 
 
 def _seen(clip, agent: str, config: ProtocolConfig):
@@ -218,7 +239,9 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
     temporary = predictions_dir is None
     pred_dir = Path(tempfile.mkdtemp(prefix="dyadbench-preds-")) if temporary else Path(predictions_dir)
     pred_dir.mkdir(parents=True, exist_ok=True)
-    items: list[ScoreItem] = []
+    items: list[ScoreItem | StoredItem] = []
+    stored = streams_items(suite)
+    digest = ItemsDigest(suite, config.seed)
     latencies: list[float] = []
     protocol_name = "streaming" if isinstance(model, StreamingModel) else "offline"
     try:
@@ -227,13 +250,16 @@ def evaluate(model_name: str, source: ClipSource, config: ProtocolConfig, *, opt
         for streamed in _stream_all(model, model_name, options, source, ids, config, keep_audio, jobs, threads,
                                     batch):
             for s in streamed:
-                atomic.save_npy(pred_dir / f"{s.output.stem}.npy", s.output.motion.astype(np.float32))
-                items.append(s.item)
+                path = pred_dir / f"{s.output.stem}.npy"
+                atomic.save_npy(path, s.output.motion.astype(np.float32))
+                digest.add(s.item)
+                items.append(StoredItem(s.item.stem, s.item.partner is not None, functools.partial(
+                    read_back, source, s.clip_id, s.agent, path, keep_audio)) if stored else s.item)
                 latencies.extend(s.output.turn_latency_s)
             bar.update(1)
         bar.close()
         report, reused = score_items(suite, items, jobs=jobs, seed=config.seed,
-                                     options=suite_options(suite, model.info))
+                                     options=suite_options(suite, model.info), digest=digest.hexdigest())
     finally:
         if temporary:
             shutil.rmtree(pred_dir, ignore_errors=True)
@@ -299,10 +325,15 @@ _SCORE_MEMO: "OrderedDict[str, object]" = OrderedDict()
 SCORE_MEMO_SIZE = 32
 
 
-def items_digest(suite: str, seed: int, items: list[ScoreItem]) -> str:
-    """sha256 over the suite, the seed and every item's stem and arrays (what scoring depends on)."""
-    h = hashlib.sha256(f"{suite}\x1f{seed}".encode())
-    for item in items:
+class ItemsDigest:
+    """sha256 over the suite, the seed and every item's stem and arrays (what scoring depends on), taken one
+    item at a time (:meth:`add`), so the items need not be held together."""
+
+    def __init__(self, suite: str, seed: int):
+        self._h = hashlib.sha256(f"{suite}\x1f{seed}".encode())
+
+    def add(self, item: ScoreItem) -> None:
+        h = self._h
         h.update(f"\x1e{item.stem}\x1f{item.identity}\x1f{item.fps}\x1f{item.sample_rate}".encode())
         for array in (item.pred, item.gt, item.partner, item.audio):
             if array is None:
@@ -311,7 +342,17 @@ def items_digest(suite: str, seed: int, items: list[ScoreItem]) -> str:
                 a = np.ascontiguousarray(array)
                 h.update(f"{a.dtype}{a.shape}".encode())
                 h.update(a.tobytes())
-    return h.hexdigest()
+
+    def hexdigest(self) -> str:
+        return self._h.hexdigest()
+
+
+def items_digest(suite: str, seed: int, items: list[ScoreItem]) -> str:
+    """:class:`ItemsDigest` of ``items`` in order."""
+    digest = ItemsDigest(suite, seed)
+    for item in items:
+        digest.add(item)
+    return digest.hexdigest()
 
 
 def suite_options(suite: str, info) -> dict:
@@ -321,16 +362,18 @@ def suite_options(suite: str, info) -> dict:
     return model_options(info) if model_options else {}
 
 
-def score_items(suite: str, items: list[ScoreItem], *, jobs: int, seed: int, options: dict | None = None):
+def score_items(suite: str, items: list[ScoreItem | StoredItem], *, jobs: int, seed: int,
+                options: dict | None = None, digest: str | None = None):
     """``dyadbench.scoring.<suite>.score_arrays(items, **options)``, memoised in this process by
-    :func:`items_digest` and the options.
+    :func:`items_digest` and the options (``digest``: the items' digest taken already, required for
+    :class:`~dyadbench.scoring.stored.StoredItem` s).
 
     A history-free model gives byte-identical predictions at every context length; a sweep then scores
     them once. Returns (report, digest if the report was reused else None).
     """
     options = options or {}
     option_text = repr(sorted((name, getattr(value, "digest", value)) for name, value in options.items()))
-    key = hashlib.sha256((items_digest(suite, seed, items) + option_text).encode()).hexdigest()
+    key = hashlib.sha256(((digest or items_digest(suite, seed, items)) + option_text).encode()).hexdigest()
     if key in _SCORE_MEMO:
         _SCORE_MEMO.move_to_end(key)
         return _SCORE_MEMO[key], key

@@ -41,9 +41,12 @@ from dyadbench.scoring import policy, without_partner
 from dyadbench.scoring.parallel import THREADS_PER_JOB, map_items
 from dyadbench.scoring.predictions import PredictionFile, open_predictions
 from dyadbench.scoring.report import ScoreItem, ScoreReport
+from dyadbench.scoring.stored import StoredItem
 from dyadbench.seeding import derive_seed
 
 SUITE = "dualtalk"
+#: score_arrays accepts StoredItem s and reads each one only when scoring it (dyadbench.scoring.stored).
+STREAMS_ITEMS = True
 AGENT_STEM = re.compile(r"^(?P<clip>.+)_speaker(?P<k>[12])$")
 
 DIVERSITY_SEED_RULE = (
@@ -60,14 +63,16 @@ UNDEFINED_REASONS = {
 
 @dataclass(frozen=True)
 class _Job:
-    """One agent to score: arrays in memory, or where to read them (a prediction file, npz paths)."""
+    """One agent to score: arrays in memory, where to read them (a prediction file, npz paths), or a
+    :class:`StoredItem` (``stored``; ``pred``, ``gt`` and ``partner`` None) read when the job runs."""
 
     stem: str
     seed: int
-    pred: np.ndarray | PredictionFile
-    gt: np.ndarray | Path
+    pred: np.ndarray | PredictionFile | None
+    gt: np.ndarray | Path | None
     partner: np.ndarray | Path | None  # None: the partner's ground truth is missing
-    partner_missing: str = ""  # why the partner's ground truth is missing (when partner is None)
+    partner_missing: str = ""  # why the partner's ground truth is missing (non-empty exactly when it is)
+    stored: StoredItem | None = None
 
 
 @dataclass
@@ -96,6 +101,9 @@ def _load_prediction(job: _Job) -> tuple[np.ndarray, str]:
 def _score_job(job: _Job) -> _Outcome:
     """Load, validate (:mod:`dyadbench.scoring.policy`) and score one agent. Runs in a worker: an error is
     raised there and reaches the caller unchanged."""
+    if job.stored is not None:
+        item = job.stored.load()
+        job = _Job(job.stem, job.seed, item.pred, item.gt, item.partner, job.partner_missing)
     pred, pred_name = _load_prediction(job)
     gt, gt_name = _load_ground_truth(job.gt, f"ground truth of {job.stem}")
     outcome = _Outcome(job.stem, frames={"pred": pred.shape[0], "gt": gt.shape[0]})
@@ -162,7 +170,7 @@ def _run(jobs_list: list[_Job], *, jobs: int, seed: int, expected: list[str], in
     rows, excluded, warnings = policy.collect(outcomes)
     if not rows:
         raise policy.nothing_scored(inputs.get("pred"), excluded, extra, expected, warnings)
-    missing = {job.stem: job.partner_missing for job in jobs_list if job.partner is None}
+    missing = {job.stem: job.partner_missing for job in jobs_list if job.partner_missing}
     not_computable = without_partner.not_computable(missing, (row["clip"] for row in rows), suite.PARTNER_KEYS)
     metrics, undefined = _aggregate(rows, {e["clip"] for e in not_computable})
     spread, method = uncertainty.estimate(SUITE, rows, list(suite.KEYS), seed=seed)
@@ -209,8 +217,11 @@ def _config(seed: int, jobs: int, inputs: dict) -> dict:
     }
 
 
-def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> ScoreReport:
+def score_arrays(items: list[ScoreItem | StoredItem], *, jobs: int = 1, seed: int = 0) -> ScoreReport:
     """Score in-memory predictions: each item's ``pred``, ``gt`` and ``partner`` are (T, 56).
+
+    A :class:`~dyadbench.scoring.stored.StoredItem` is read only in the job that scores it (the same
+    numbers as its :class:`ScoreItem` in memory), so a split of them is never held whole.
 
     ``partner=None`` (its ground truth is missing): the partner-based metrics of that item are not
     computable (listed under ``coverage["not_computable"]``), the others are scored. A wrong shape raises
@@ -223,10 +234,18 @@ def score_arrays(items: list[ScoreItem], *, jobs: int = 1, seed: int = 0) -> Sco
     duplicated = sorted({s for s in stems if stems.count(s) > 1})
     if duplicated:
         raise InputError(None, f"duplicate item stems: {', '.join(duplicated)}")
-    jobs_list = [_Job(item.stem, derive_seed(seed, item.stem), item.pred, item.gt, item.partner,
-                      "" if item.partner is not None else "no partner ground truth given (partner=None)") for item in items]
+    jobs_list = [_item_job(item, derive_seed(seed, item.stem)) for item in items]
     return _run(jobs_list, jobs=jobs, seed=seed, expected=stems, inputs={"pred": "in-memory", "gt": "in-memory"},
                 extra=[])
+
+
+def _item_job(item: ScoreItem | StoredItem, seed: int) -> _Job:
+    stored = isinstance(item, StoredItem)
+    has_partner = item.has_partner if stored else item.partner is not None
+    missing = "" if has_partner else "no partner ground truth given (partner=None)"
+    if stored:
+        return _Job(item.stem, seed, None, None, None, missing, stored=item)
+    return _Job(item.stem, seed, item.pred, item.gt, item.partner, missing)
 
 
 def partner_stem(stem: str, source: str | None = None) -> str:
