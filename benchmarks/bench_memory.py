@@ -112,7 +112,8 @@ def render(rows: list[dict], checks: list[dict], total: int, load: tuple[float, 
              f"({2 * total} directions); model `mean-frame`, context 0, seed 0, one thread, one process.", "",
              "| command | dialogues | peak RSS (MiB) | wall (s) |", "|---|---:|---:|---:|"]
     lines += [f"| {r['command']} | {r['dialogues']} | {r['peak_mib']:.0f} | {r['wall_s']:.1f} |" for r in rows]
-    lines += ["", "| dialogues | items | held-arrays metrics = streamed | score metrics = eval |", "|---:|---:|---|---|"]
+    lines += ["", "| dialogues | items | held-arrays metrics = streamed | score metrics = eval |",
+              "|---:|---:|---|---|"]
     lines += [f"| {c['dialogues']} | {c['items']} | {c['held_equal_streamed']} | {c['score_equal_eval']} |"
               for c in checks]
     lines += ["", f"Load average at the end (1, 5, 15 min): {load[0]:.2f}, {load[1]:.2f}, {load[2]:.2f} on "
