@@ -173,3 +173,58 @@ def test_eval_with_batch_records_the_same_predictions_metrics_and_configuration(
         _assert_same(name, np.load(tmp_path / "4" / path.name), np.load(path))
     if name not in BATCHED_ARITHMETIC:
         assert one.metrics == many.metrics
+
+
+def _sfms_weights(sharing: str, folder) -> str:
+    """A small random SFMS of either keyframe allocation (the channel one has per-channel classes)."""
+    torch = pytest.importorskip("torch")
+    from dyadbench.training.checkpoint import save_checkpoint  # noqa: PLC0415
+    from models.sfms.bundle import PREDICTOR_MODEL, SFMS  # noqa: PLC0415
+    from models.sfms.config import predictor_preset, tokenizer_preset  # noqa: PLC0415
+    from models.sfms.predictor import SFMSPredictor  # noqa: PLC0415
+    from models.sfms.tokenizer import SFMSTokenizer  # noqa: PLC0415
+
+    torch.manual_seed(0)
+    tok = SFMSTokenizer(tokenizer_preset("tiny", width=32, heads=2, ffn=64, pe_dim=8, keyframes=4,
+                                         mask_sharing=sharing))
+    pred = SFMSPredictor(predictor_preset("tiny", width=32, heads=2, ffn=64, audio_bins=8), 56, tok.cfg.n_classes,
+                         tok.cfg.per_channel)
+    for block in pred.fusion:
+        block.alpha.data.fill_(0.3)
+    path = folder / f"sfms-{sharing}.pt"
+    model = SFMS(tok, pred).eval()
+    save_checkpoint(path, model_state=model.state_dict(), config=model.config(), meta={"model": PREDICTOR_MODEL})
+    return str(path)
+
+
+@pytest.mark.parametrize("sharing", ["shipped", "frame", "channel"])
+@pytest.mark.parametrize("context", [0, 7])
+def test_sfms_batches_its_steps_and_equals_streaming_one_at_a_time(sharing, context, tmp_path, monkeypatch):
+    """SFMS runs the open streams' steps as one batch (the roller sees B > 1) with per-stream caches and random
+    draws: outputs equal streaming each direction alone, bit for bit, for streams of unequal lengths (a clip
+    ending early hands its slot on) and a clip at another frame rate (its own group). Per-channel allocation
+    runs its streams one at a time (a batch of its tokens rounds differently) and is bit for bit too."""
+    from models.sfms.infer import Roller  # noqa: PLC0415
+
+    weights = None if sharing == "shipped" else _sfms_weights(sharing, tmp_path)
+    options = ModelOptions(seed=0, weights=weights, extra={"layout": "flame56", "turn_seconds": 1.0})
+    clips = [make_clip(f"u{i}", s, seed=30 + i) for i, s in enumerate((9.4, 2.2, 4.0))]
+    clips.append(make_clip("u20fps", 3.0, seed=40, fps=20.0))
+    directions = [(clip, p.name) for clip in clips for p in clip.agent_participants]
+    build = MODELS.load("sfms")
+    config = ProtocolConfig(context=context, seed=3)
+    alone = [stream_agent(build(options), clip, agent, config) for clip, agent in directions]
+    sizes = []
+    step = Roller.step
+
+    def counted(self, hist, *args, **kwargs):
+        sizes.append(hist.shape[0])
+        return step(self, hist, *args, **kwargs)
+
+    monkeypatch.setattr(Roller, "step", counted)
+    batched = list(stream_agents(build(options), directions, config, batch=5))
+    # the five open streams in one batch (the 20 fps clip's turns in a group of their own); channel: one by one
+    assert max(sizes) == (1 if sharing == "channel" else 5)
+    assert [b.stem for b in batched] == [a.stem for a in alone]
+    for a, b in zip(alone, batched):
+        np.testing.assert_array_equal(b.motion, a.motion)

@@ -62,7 +62,8 @@ def data_options(f: Callable) -> Callable:
                      help="Directions (clip x participant) streamed together, their turns handed to the model in "
                           "one call (per process). Predictions are those of streaming one direction at a time, "
                           "so it is not recorded; models that batch their forward passes (TIMAR, "
-                          "TIMAR-stream, DualTalk) run faster, the others loop over the batch. 1: one at a time."),
+                          "TIMAR-stream, DualTalk, SFMS) run faster, the others loop over the batch. 1: one at a "
+                          "time."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 

@@ -29,9 +29,13 @@ class Roller:
         """(batch, P) classes of an all-neutral past (the tokenised zero window); (batch, P, d) per channel."""
         return self._neutral.expand(batch, *self._neutral.shape[1:]).clone()
 
-    def _sample(self, logits: torch.Tensor, generator: torch.Generator | None) -> torch.Tensor:
+    def _sample(self, logits: torch.Tensor, generator: torch.Generator | list | None) -> torch.Tensor:
+        """Classes of ``logits`` (B, ...); ``generator`` a list: one per row of the batch (row b draws from
+        ``generator[b]`` exactly what it would draw alone)."""
         if self.greedy:
             return logits.argmax(-1)
+        if isinstance(generator, list):
+            return torch.cat([self._sample(logits[b:b + 1], g) for b, g in enumerate(generator)])
         logits = logits / self.cfg.temperature
         if self.cfg.top_k > 0:
             kth = logits.topk(min(self.cfg.top_k, logits.shape[-1]), dim=-1).values[..., -1:]
@@ -60,9 +64,10 @@ class Roller:
 
     @torch.no_grad()
     def step(self, hist: torch.Tensor, speaker: torch.Tensor, audio: torch.Tensor, valid: torch.Tensor,
-             n_commit: int, generator: torch.Generator | None = None) -> tuple[torch.Tensor, torch.Tensor]:
+             n_commit: int, generator: torch.Generator | list | None = None) -> tuple[torch.Tensor, torch.Tensor]:
         """(new classes (B, n_commit), frames (B, n_commit, d)) for one step; ``hist`` (B, ≥P) (classes
-        (B, n_commit, d) and ``hist`` (B, ≥P, d) with per-channel allocation)."""
+        (B, n_commit, d) and ``hist`` (B, ≥P, d) with per-channel allocation); ``generator``: one for the
+        batch, or a list of one per stream (:meth:`_sample`)."""
         past = hist[:, -self.cfg.past:]
         logits = self.pred(past, speaker, audio, valid)
         new = self._sample(logits, generator)

@@ -6,9 +6,21 @@ it ships them, as Learning2Listen does, else the log-mel of the waveform) and th
 earlier turns of the same stream (internal state, hence causal). The agent's own speech is not used.
 Within a turn the model steps F = 8 frames at a time; a step crossing the turn end commits only the
 frames inside the turn, and the speaker window never extends past the current turn.
+
+Batched streaming (``predict_turns``): the open streams' steps run as one batch through the predictor and
+the tokenizer, each stream with its own committed classes and its own random generator (seeded from its
+stream seed; row b of the batch draws from stream b's generator what it would draw alone): bit for bit
+the outputs of streaming each direction alone with the shared keyframe mask (``mask_sharing = frame``, the
+default). Streams whose turns have different frame counts run in groups of equal turn length. With
+per-channel allocation (``mask_sharing = channel``) a batch of (frame, channel) tokens rounds differently
+(about 4e-7 in normalised motion, measured), so those streams run one at a time (each with its own state),
+which keeps them bit for bit too.
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import torch
@@ -20,6 +32,15 @@ from models.sfms.data import speaker_rows
 from models.sfms.infer import Roller, speaker_window
 
 
+@dataclass
+class _Stream:
+    """One stream's state: its context, random generator and last P committed classes (1, P[, d])."""
+
+    ctx: StreamContext
+    generator: torch.Generator
+    hist: torch.Tensor
+
+
 class SFMSStreamingModel(StreamingModel):
     def __init__(self, model: SFMS, info: ModelInfo, *, greedy: bool | None = None):
         self.roller = Roller(model, greedy=greedy)
@@ -27,17 +48,24 @@ class SFMSStreamingModel(StreamingModel):
         self.info = info
         self._ctx: StreamContext | None = None
 
-    def start_stream(self, ctx: StreamContext) -> None:
+    def _new_stream(self, ctx: StreamContext) -> _Stream:
         if ctx.user is None:
             raise InputError(ctx.clip_id, "SFMS is a listener model and needs a partner (two-participant clip)")
-        self._ctx = ctx
-        self._generator = torch.Generator().manual_seed(int(ctx.seed))
-        self._hist = self.roller.neutral_history(1)
+        return _Stream(ctx, torch.Generator().manual_seed(int(ctx.seed)), self.roller.neutral_history(1))
 
-    def _inputs(self, turn: TurnInput) -> tuple[torch.Tensor, torch.Tensor]:
+    def start_stream(self, ctx: StreamContext) -> None:
+        self._stream = self._new_stream(ctx)
+        self._ctx = ctx
+
+    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
+        slots = self.__dict__.setdefault("_slots", {})
+        for slot, ctx in contexts.items():
+            slots[slot] = self._new_stream(ctx)
+
+    def _inputs(self, turn: TurnInput, ctx: StreamContext) -> tuple[torch.Tensor, torch.Tensor]:
         """Normalised partner motion (1, N, d) and speech rows (1, N·rows, bins) of the turn window: the
         dataset's speech features when it ships them, else the log-mel of the partner's waveform."""
-        ctx, cfg = self._ctx, self.pred.cfg
+        cfg = self.pred.cfg
         n = turn.user_motion.shape[0]
         if turn.user_motion.ndim != 2 or turn.user_motion.shape[1] != self.tok.cfg.dim:
             raise InputError(f"{ctx.clip_id}_{ctx.user}", f"partner motion must be (T, {self.tok.cfg.dim}), "
@@ -50,19 +78,49 @@ class SFMSStreamingModel(StreamingModel):
         audio = (torch.as_tensor(rows) - self.pred.audio_mean) / self.pred.audio_std
         return motion[None], audio[None]
 
-    @torch.no_grad()
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
         if self._ctx is None:
             raise RuntimeError("predict_turn called before start_stream")
+        return self._roll([self._stream], [turn])[0]
+
+    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
+        slots = self.__dict__.get("_slots", {})
+        missing = [t.stream for t in turns if t.stream not in slots]
+        if missing:
+            raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
+        outs: list[np.ndarray | None] = [None] * len(turns)
+        for group in self._groups(turns):
+            for i, out in zip(group, self._roll([slots[turns[i].stream] for i in group], [turns[i] for i in group])):
+                outs[i] = out
+        return outs
+
+    def _groups(self, turns: Sequence[TurnInput]) -> list[list[int]]:
+        """Indices of the turns run as one batch: equal turn lengths together (per-channel allocation: one
+        at a time, see the module docstring)."""
+        if self.tok.cfg.per_channel:
+            return [[i] for i in range(len(turns))]
+        lengths = dict.fromkeys(t.frames_per_turn for t in turns)
+        return [[i for i, t in enumerate(turns) if t.frames_per_turn == length] for length in lengths]
+
+    @torch.no_grad()
+    def _roll(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
+        """The current turn of each stream (turns of one length), the streams' steps batched: step k of the
+        turn reads each stream's speaker window at its own frame h·F + k·future (h its history turns)."""
         cfg = self.pred.cfg
-        speaker, audio = self._inputs(turn)
-        known = speaker.shape[1]
-        first = turn.history_turns * turn.frames_per_turn  # index of the current turn's first frame
+        inputs = [self._inputs(turn, stream.ctx) for turn, stream in zip(turns, streams)]
+        length = turns[0].frames_per_turn
+        hist = torch.cat([stream.hist for stream in streams])
         frames = []
-        for t in range(first, known, cfg.future):
-            n = min(cfg.future, known - t)
-            m, a, valid = speaker_window(speaker, audio, known, t, cfg.past, cfg.future, cfg.audio_rows_per_frame)
-            new, out = self.roller.step(self._hist, m, a, valid, n, self._generator)
-            self._hist = torch.cat([self._hist, new], dim=1)[:, -cfg.past:]
+        for k in range(0, length, cfg.future):
+            windows = [speaker_window(speaker, audio, speaker.shape[1], turn.history_turns * length + k, cfg.past,
+                                      cfg.future, cfg.audio_rows_per_frame)
+                       for (speaker, audio), turn in zip(inputs, turns)]
+            m, a, valid = (torch.cat(parts) for parts in zip(*windows))
+            new, out = self.roller.step(hist, m, a, valid, min(cfg.future, length - k),
+                                        [stream.generator for stream in streams])
+            hist = torch.cat([hist, new], dim=1)[:, -cfg.past:]
             frames.append(out)
-        return self.tok.denormalise(torch.cat(frames, dim=1)[0]).numpy().astype(np.float64)
+        for b, stream in enumerate(streams):
+            stream.hist = hist[b:b + 1]
+        motion = torch.cat(frames, dim=1)
+        return [self.tok.denormalise(motion[b]).numpy().astype(np.float64) for b in range(len(streams))]
