@@ -59,7 +59,7 @@ class Registry:
 MODELS = Registry("model")
 DATASETS = Registry("dataset")
 # The embedded corpus a run uses when it names neither --dataset nor --data.
-DEFAULT_EMBEDDED = "synthetic"
+DEFAULT_EMBEDDED = "synthetic-v2"
 # The embedded corpora's generator versions: tables and figures name each corpus with its version.
 EMBEDDED_VERSIONS = {"synthetic": 1, "synthetic-v2": 2}
 
@@ -99,10 +99,10 @@ EVALUATORS.add("stygazetalk-style", "models.stygazetalk.evaluator:load_style_eva
 # --- datasets: factories ``open_split(root: Path | None, split: str | None) -> ClipSource``; split None:
 # the split folder ``root`` itself (ClipSource.single_split), else the dataset's test split ----------
 DATASETS.add("synthetic", "dyadbench.datasets.synthetic:open_split",
-             "Embedded synthetic dyadic-conversation corpus (generated on first use, cached). Default.")
+             "Embedded synthetic dyadic-conversation corpus v1 (generated on first use, cached); the default before v2")
 DATASETS.add("synthetic-v2", "dyadbench.datasets.synthetic:open_split_v2",
              "Embedded synthetic corpus v2: v1 plus conversational dynamics over many seconds (shared mood, "
-             "entrainment, listener engagement, nod excitation); generated on first use, cached")
+             "entrainment, listener engagement, nod excitation); generated on first use, cached. Default.")
 DATASETS.add("dualtalk", "dyadbench.datasets.dualtalk:open_split",
              "DualTalk folders train/ test/ ood/ with <clip>_speaker{1,2}.{wav,npz}")
 DATASETS.add("l2l", "dyadbench.datasets.l2l:open_split",

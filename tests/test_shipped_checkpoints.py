@@ -19,7 +19,8 @@ SHIPPED = {
     "synthetic": [("timar", timar_shipped("timar", "synthetic")),
                   ("timar-stream", timar_shipped("timar-stream", "synthetic")),
                   ("sfms", sfms_shipped("synthetic")), ("dualtalk", dualtalk_shipped("synthetic"))],
-    "synthetic-v2": [("timar", timar_shipped("timar", "synthetic-v2")), ("sfms", sfms_shipped("synthetic-v2")),
+    "synthetic-v2": [("timar", timar_shipped("timar", "synthetic-v2")),
+                     ("timar-stream", timar_shipped("timar-stream", "synthetic-v2")), ("sfms", sfms_shipped("synthetic-v2")),
                      ("dualtalk", dualtalk_shipped("synthetic-v2"))],
 }
 
@@ -39,6 +40,7 @@ def test_checkpoint_names_follow_the_corpus(tmp_path):
     # real data and code that names no dataset: the default corpus's checkpoint
     default = shipped_checkpoint(tmp_path, "m", DEFAULT_EMBEDDED)
     assert shipped_checkpoint(tmp_path, "m", "dualtalk") == default == shipped_checkpoint(tmp_path, "m", None)
+    assert default == tmp_path / "m-v2.pt"  # corpus v2 is the default (every model has its v2 checkpoint)
 
 
 def test_a_run_loads_the_checkpoint_of_the_corpus_it_evaluates():

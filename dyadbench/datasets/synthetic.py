@@ -2,7 +2,7 @@
 
 Two generator versions (:class:`Corpus`): dataset ``synthetic`` is v1 (:mod:`dyadbench.synth.corpus`),
 dataset ``synthetic-v2`` is v2 (:mod:`dyadbench.synth.corpus_v2`: v1 plus conversational dynamics over
-many seconds). The default embedded corpus is ``synthetic`` (``EMBEDDED`` in :mod:`dyadbench.cli.eval`).
+many seconds). The default embedded corpus is ``synthetic-v2`` (:data:`dyadbench.registry.DEFAULT_EMBEDDED`).
 
 ``open_split(None, split)`` (``open_split_v2``) uses ``<cache>/synthetic-v<generator version>/<split>/`` (the cache is
 ``$DYADBENCH_CACHE`` or the user's cache directory, :func:`dyadbench.paths.cache_dir`). When that folder

@@ -18,6 +18,7 @@ from dyadbench import atomic
 from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real, required
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
+from dyadbench.registry import DEFAULT_EMBEDDED
 from dyadbench.outputs import check_cache, check_file
 from dyadbench.registry import DATASETS
 from dyadbench.seeding import rng as seeded_rng
@@ -77,7 +78,7 @@ def _common(f):
                      help="Preset: tiny (minutes on 2 CPU cores) or paper (window 48, width 256)."),
         click.option("--set", "overrides", multiple=True, metavar="FIELD=VALUE",
                      help="Override any config field (every spec decision is one), e.g. --set keyframes=10."),
-        click.option("--dataset", default="synthetic", show_default=True,
+        click.option("--dataset", default=DEFAULT_EMBEDDED, show_default=True,
                      help="Registered dataset to train on (`dyadbench datasets`)."),
         click.option("--data", "root", type=click.Path(path_type=Path), default=None,
                      help="Dataset root (default: the dataset's own default, e.g. the embedded corpus cache)."),

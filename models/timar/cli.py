@@ -95,8 +95,8 @@ def train_timar(**kwargs) -> None:
       OMP_NUM_THREADS=1 dyadbench train timar --dataset synthetic --config tiny --stride 4 --epochs 10 \\
           --warmup-epochs 0.05 --seed 0 --export models/timar/checkpoints/timar-tiny.pt
     On the Seamless layout (the model generates its 165 feature columns at 30 fps; see models/timar/layouts.py),
-    the shipped models/timar/checkpoints/timar-tiny-seamless.pt:
-      dyadbench data synth --layout seamless --out out/seamless-synth --split train --clips 200
+    the shipped models/timar/checkpoints/timar-tiny-seamless.pt, trained on out/seamless-synth (the train split
+    that `dyadbench data synth --layout seamless --split train --clips 200` writes there):
       OMP_NUM_THREADS=1 dyadbench train timar --dataset seamless --data out/seamless-synth --config tiny \\
           --stride 4 --epochs 4 --warmup-epochs 0.05 --seed 0 --run-dir runs/timar-tiny-seamless \\
           --export models/timar/checkpoints/timar-tiny-seamless.pt
