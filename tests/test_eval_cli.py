@@ -67,11 +67,11 @@ def test_eval_defaults_to_the_embedded_corpus_and_says_so(dualtalk_dir, tmp_path
         opened.append((root, split))
         return dualtalk.open_split(dualtalk_dir, split)
 
-    monkeypatch.setattr(synthetic, "open_split", small_embedded)
+    monkeypatch.setattr(synthetic, "open_split_v2", small_embedded)  # corpus v2 is the default
     result = CliRunner().invoke(cli, ["eval", "--model", "mean-frame", "--context", "0", "--clips", "1",
                                       "--out", str(tmp_path / "e")])
     assert result.exit_code == 0, result.output
-    assert "using the embedded synthetic corpus" in result.output
+    assert "using the embedded synthetic-v2 corpus" in result.output
     assert opened[0] == (None, None) and (None, "train") in opened  # no --split: the adapter's default
     recorded = load_result(tmp_path / "e" / "result.json").data
     assert recorded.clips == 1 and recorded.split == "test"

@@ -106,7 +106,7 @@ def test_eval_mime_and_leaderboard_row_and_reference_refusal(root, tmp_path):
     refused = runner.invoke(cli, ["eval", "--dataset", "seamless", "--data", str(root), "--model", "timar-stream",
                                    "--split", "test", "--out", str(tmp_path / "timar-stream")])
     assert refused.exit_code != 0
-    assert ("timar-stream-tiny.pt: this timar-stream checkpoint generates flame56 motion (56 dims at 25 fps); "
+    assert ("timar-stream-tiny-v2.pt: this timar-stream checkpoint generates flame56 motion (56 dims at 25 fps); "
             "the split is seamless") in str(refused.exception)
 
 

@@ -154,7 +154,7 @@ def test_per_channel_loss_counts_every_channel_token():
 def test_shipped_shared_checkpoint_loads_shared_and_encodes_as_before():
     """The committed checkpoint predates the option: it loads as the shared mask and its classes of a fixed
     window are those the shared-only code gave (recorded before per-channel allocation existed)."""
-    tok = load_tokenizer(shipped())
+    tok = load_tokenizer(shipped("synthetic"))
     assert tok.cfg.mask_sharing == "frame" and not tok.cfg.per_channel
     t = torch.arange(48.0)
     m = torch.stack([torch.sin(t / (3 + j % 7) + j) for j in range(56)], dim=1)[None] * 1.5

@@ -105,7 +105,7 @@ def test_checkpoint_of_another_layout_is_refused_naming_the_file(weights):
     with pytest.raises(InputError, match=r"timar-seamless\.pt: .*generates seamless motion .*split is flame56"):
         build_timar(ModelOptions(weights=weights, extra={"layout": "flame56"}))
     # timar-stream ships no seamless checkpoint: its FLAME one is loaded and refused
-    with pytest.raises(InputError, match=r"timar-stream-tiny\.pt: .*generates flame56 motion"):
+    with pytest.raises(InputError, match=r"timar-stream-tiny-v2\.pt: .*generates flame56 motion"):
         build_timar_stream(ModelOptions(dataset="seamless", extra={"layout": "seamless"}))
 
 

@@ -114,10 +114,10 @@ def test_cli_help_lists_every_option():
 
 
 @pytest.mark.parametrize("trainer", ["timar", "timar-stream", "dualtalk"])
-@pytest.mark.parametrize("args, expected", [([], ("synthetic", None)),
-                                            (["--dataset", "synthetic-v2"], ("synthetic-v2", None))])
+@pytest.mark.parametrize("args, expected", [([], ("synthetic-v2", None)),
+                                            (["--dataset", "synthetic"], ("synthetic", None))])
 def test_train_reads_the_train_split_of_the_named_embedded_corpus(tmp_path, monkeypatch, trainer, args, expected):
-    """`dyadbench train <model> --dataset synthetic-v2` trains on corpus v2's train split; without --dataset the
+    """`dyadbench train <model> --dataset synthetic` trains on corpus v1's train split; without --dataset the
     embedded default. (The split opener is replaced so no corpus is generated; it stops the command.)"""
     import dyadbench.protocol.runner as runner
     from dyadbench.cli import main

@@ -132,7 +132,7 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
     """SFMS stage 1: train the sparse keyframe tokenizer (scorer + FSQ/VQ + inpainter).
 
     \b
-    Example (the shipped tiny tokenizer):
+    Example (the shipped tiny tokenizer of the default corpus v2; --dataset synthetic for v1's):
       dyadbench train sfms-tokenizer --config tiny --export sfms-tok.pt
     """
     check_cache()
@@ -177,10 +177,10 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
     --mask-sharing`): a per-channel tokenizer gives a predictor of classes per frame and channel.
 
     \b
-    Example (the shipped tiny model of corpus v1; one command line; for corpus v2 both stages take
-    --dataset synthetic-v2 and it exports models/sfms/checkpoints/sfms-tiny-v2.pt):
+    Example (the shipped tiny model of the default corpus v2; one command line; for corpus v1 both stages
+    take --dataset synthetic and it exports models/sfms/checkpoints/sfms-tiny.pt):
       dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
-          --export models/sfms/checkpoints/sfms-tiny.pt
+          --export models/sfms/checkpoints/sfms-tiny-v2.pt
     """
     check_cache()
     check_file(export, f"--export {export}")
