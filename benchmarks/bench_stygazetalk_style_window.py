@@ -44,12 +44,12 @@ from scipy import stats
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from bench_stygazetalk_variants import stream_items  # noqa: E402  (benchmarks/bench_stygazetalk_variants.py)
 from output import write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.metrics.gaze import sliding_windows  # noqa: E402
 from dyadbench.protocol.config import ProtocolConfig  # noqa: E402
 from dyadbench.protocol.interface import ModelOptions  # noqa: E402
-from dyadbench.protocol.streaming import stream_agent  # noqa: E402
-from dyadbench.registry import DATASETS, MODELS  # noqa: E402
+from dyadbench.registry import DATASETS  # noqa: E402
 from dyadbench.scoring.gaze import SEED_FRAMES, score_arrays  # noqa: E402
 from dyadbench.scoring.report import ScoreItem  # noqa: E402
 from models.stygazetalk.checkpoints import (SHIPPED_STYLE_ENCODER, load_style_model, load_system,  # noqa: E402
@@ -88,14 +88,7 @@ def train_arm(style_input: str, seed: int, steps: int, out: Path) -> dict:
 
 
 def _stream(weights: Path, clips, config: ProtocolConfig) -> list[ScoreItem]:
-    model = MODELS.load("stygazetalk")(ModelOptions(weights=weights, extra={"decoding": "mean"}))
-    items = []
-    for clip in clips:
-        p = clip.participants[0]
-        out = stream_agent(model, clip, p.name, config).motion
-        items.append(ScoreItem(f"{clip.clip_id}_{p.name}", out, p.motion[:len(out)], audio=p.audio,
-                               identity=p.identity))
-    return items
+    return stream_items("stygazetalk", ModelOptions(weights=weights, extra={"decoding": "mean"}), clips, config)
 
 
 def session_style(evaluator, motion: np.ndarray) -> np.ndarray:

@@ -160,7 +160,8 @@ def _ablation_key(variant: str, selection: str, seed: int) -> str:
     return f"{variant}-seed{seed}" if selection == "val-loss" else f"{variant}-{selection}-seed{seed}"
 
 
-def _stream(name: str, options: ModelOptions, clips, config: ProtocolConfig) -> list[ScoreItem]:
+def stream_items(name: str, options: ModelOptions, clips, config: ProtocolConfig) -> list[ScoreItem]:
+    """The scored items of model `name` streamed over the first participant of each clip."""
     model = MODELS.load(name)(options)
     items = []
     for clip in clips:
@@ -182,7 +183,7 @@ def _x1_scale_grid(weights: Path, val_clips, config: ProtocolConfig, evaluator) 
     grid = {}
     for scale in X1_SCALES:
         extra = {"decoding": "sample", "sample_temperature": scale}
-        items = _stream("stygazetalk", ModelOptions(weights=weights, extra=extra), val_clips, config)
+        items = stream_items("stygazetalk", ModelOptions(weights=weights, extra=extra), val_clips, config)
         grid[scale] = score_arrays(items, seed=0, style_encoder=evaluator).metrics["sim_gt_seq"]
     return grid
 
@@ -200,7 +201,7 @@ def _style_transfer(weights: Path, clips, config: ProtocolConfig, evaluator) -> 
     for i, clip in enumerate(clips):
         j = (i + 3) % len(clips)
         for tag, extra in (("own", {}), ("transfer", {"style_from": clips[j].participants[0].motion})):
-            out = _stream("stygazetalk", ModelOptions(weights=weights, extra={"decoding": "mean", **extra}),
+            out = stream_items("stygazetalk", ModelOptions(weights=weights, extra={"decoding": "mean", **extra}),
                           [clip], config)[0].pred
             cos[f"{tag}→own GT"].append(float(style(out) @ gt[i]))
             cos[f"{tag}→ref GT"].append(float(style(out) @ gt[j]))
@@ -244,18 +245,18 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
     score("GT (oracle)", _arrays(clips, [c.participants[0].motion for c in clips]))
     perm = derangement(len(clips), 0)
     score("other session (real motion)", _arrays(clips, [clips[j].participants[0].motion for j in perm]))
-    score("gaze-static", _stream("gaze-static", ModelOptions(), clips, config))
-    score("gaze-headcopy (oracle head)", _stream("gaze-headcopy", ModelOptions(), clips, config))
+    score("gaze-static", stream_items("gaze-static", ModelOptions(), clips, config))
+    score("gaze-headcopy (oracle head)", stream_items("gaze-headcopy", ModelOptions(), clips, config))
     labels = {"base": "Base", "se32": "SE-32", "se64": "SE-64", "se64-vel": "SE-64-VEL", "tfm-se64": "TFM-SE-64"}
     for variant, label in labels.items():
-        score(label, _stream("stygazetalk", ModelOptions(weights=paths[variant]), clips, config))
-    score("MPGW-sim", _stream("stygazetalk", ModelOptions(weights=paths["se64"], extra={"seed_window": "mpgw-sim"}),
-                              clips, config))
+        score(label, stream_items("stygazetalk", ModelOptions(weights=paths[variant]), clips, config))
+    mpgw_sim = ModelOptions(weights=paths["se64"], extra={"seed_window": "mpgw-sim"})
+    score("MPGW-sim", stream_items("stygazetalk", mpgw_sim, clips, config))
     if SHIPPED_MODEL.is_file():
-        score("shipped: SE-64-VEL + X1 sampled eyes", _stream("stygazetalk", ModelOptions(), clips, config))
+        score("shipped: SE-64-VEL + X1 sampled eyes", stream_items("stygazetalk", ModelOptions(), clips, config))
     ablation = {"se64-seed0": rows["SE-64"], "se64-vel-seed0": rows["SE-64-VEL"]}
     for key in (k for k in paths if k.startswith(ABLATION) and "seed" in k and k not in ablation):
-        ablation[key] = score_arrays(_stream("stygazetalk", ModelOptions(weights=paths[key]), clips, config),
+        ablation[key] = score_arrays(stream_items("stygazetalk", ModelOptions(weights=paths[key]), clips, config),
                                      seed=0).metrics
     transfer = _style_transfer(paths["se64-vel"], clips, config, evaluator)
     x1_grid = _x1_scale_grid(paths["se64-vel"], list(DATASETS.load(DATASET)(None, "val")), config, evaluator)

@@ -57,29 +57,9 @@ def _held_errors(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 @numba.njit(cache=True)
-def _optimal_sse(w: np.ndarray, k: int) -> float:
-    t_len = w.shape[0]
-    seg = _segment_errors(w)
-    head, tail = _held_errors(w)
-    cost = head.copy()
-    for _ in range(1, k):
-        nxt = np.full(t_len, np.inf)
-        for b in range(t_len):
-            for a in range(b):
-                v = cost[a] + seg[a, b]
-                if v < nxt[b]:
-                    nxt[b] = v
-        cost = nxt
-    best = np.inf
-    for b in range(t_len):
-        if cost[b] + tail[b] < best:
-            best = cost[b] + tail[b]
-    return best
-
-
-@numba.njit(cache=True)
-def _optimal_positions(w: np.ndarray, k: int) -> np.ndarray:
-    """The positions of one minimiser of the programme of :func:`_optimal_sse` (first minimum on ties)."""
+def _optimal_programme(w: np.ndarray, k: int) -> tuple[float, np.ndarray]:
+    """The smallest squared error of a piecewise-linear reconstruction through k frames (held at both ends) by
+    dynamic programming over the last chosen frame, and the positions of one minimiser (first minimum on ties)."""
     t_len = w.shape[0]
     seg = _segment_errors(w)
     head, tail = _held_errors(w)
@@ -102,7 +82,7 @@ def _optimal_positions(w: np.ndarray, k: int) -> np.ndarray:
     for m in range(k - 1, -1, -1):
         out[m] = last
         last = parent[m, last]
-    return out
+    return best, out
 
 
 def _check(window: np.ndarray, k: int) -> np.ndarray:
@@ -126,16 +106,17 @@ def interpolation_mse(window: np.ndarray, positions: np.ndarray) -> float:
 def optimal_placement_mse(window: np.ndarray, k: int) -> float:
     """The smallest :func:`interpolation_mse` over every set of ``k`` positions (exact)."""
     w = _check(window, k)
-    return float(_optimal_sse(np.ascontiguousarray(w), k) / w.size)
+    return float(_optimal_programme(np.ascontiguousarray(w), k)[0] / w.size)
 
 
 def optimal_positions(window: np.ndarray, k: int) -> np.ndarray:
     """Ascending positions of a k-set reaching :func:`optimal_placement_mse` (the first minimum found)."""
     w = _check(window, k)
-    return _optimal_positions(np.ascontiguousarray(w), k)
+    return _optimal_programme(np.ascontiguousarray(w), k)[1]
 
 
 def per_channel_optimal_mse(window: np.ndarray, k: int) -> float:
     """The smallest :func:`interpolation_mse` when every channel places its own ``k`` positions (exact)."""
     w = _check(window, k)
-    return float(sum(_optimal_sse(np.ascontiguousarray(w[:, c: c + 1]), k) for c in range(w.shape[1])) / w.size)
+    return float(sum(_optimal_programme(np.ascontiguousarray(w[:, c: c + 1]), k)[0] for c in range(w.shape[1]))
+                 / w.size)
