@@ -165,6 +165,21 @@ class StreamingModel(abc.ABC):
         return [copies[turn.stream].predict_turn(turn) for turn in turns]
 
 
+def predict_in_groups(turns: Sequence[TurnInput], key: Callable[[int, TurnInput], object],
+                      predict: Callable[[list[int]], Sequence[np.ndarray]]) -> list[np.ndarray]:
+    """A batched ``predict_turns``: the turns with equal ``key(i, turn)`` form one group (groups in order of
+    first appearance), ``predict(indices)`` gives the outputs of one group in the order of its indices, and
+    the outputs come back in the order of ``turns``."""
+    groups: dict[object, list[int]] = {}
+    for i, turn in enumerate(turns):
+        groups.setdefault(key(i, turn), []).append(i)
+    out: list[np.ndarray | None] = [None] * len(turns)
+    for members in groups.values():
+        for i, x in zip(members, predict(members)):
+            out[i] = x
+    return out
+
+
 class OfflineModel(abc.ABC):
     """A full-sequence (non-causal) model, run by the offline protocol."""
 

@@ -18,7 +18,8 @@ import numpy as np
 import torch
 
 from dyadbench.errors import ConfigError, InputError
-from dyadbench.protocol.interface import ModelInfo, OfflineModel, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.interface import (ModelInfo, OfflineModel, StreamContext, StreamingModel, TurnInput,
+                                          predict_in_groups)
 from models.dualtalk.model import DualTalkModel
 from models.dualtalk.speech import frame_count, logmel_input, normalise_waveform
 
@@ -103,17 +104,15 @@ class DualTalkStream(StreamingModel):
         return _current(out, turn)
 
     def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
-        groups: dict[tuple, list[int]] = {}
-        for i, turn in enumerate(turns):
-            groups.setdefault((turn.agent_audio.shape[0], turn.user_audio.shape[0], turn.user_motion.shape[0]),
-                              []).append(i)
-        out: list[np.ndarray | None] = [None] * len(turns)
-        for members in groups.values():
+        def predict(members: list[int]) -> list[np.ndarray]:
             windows = [dict(agent_audio=turns[i].agent_audio, user_audio=turns[i].user_audio,
                             user_motion=turns[i].user_motion, **self._slot_stats[turns[i].stream]) for i in members]
-            for i, motion in zip(members, self.runner.predict_many(windows)):
-                out[i] = _current(motion, turns[i])
-        return out
+            return [_current(motion, turns[i]) for i, motion in zip(members, self.runner.predict_many(windows))]
+
+        def shapes(_, turn: TurnInput) -> tuple:
+            return turn.agent_audio.shape[0], turn.user_audio.shape[0], turn.user_motion.shape[0]
+
+        return predict_in_groups(turns, shapes, predict)
 
 
 def _stream_stats(ctx: StreamContext) -> dict[str, tuple[float, float] | None]:

@@ -26,7 +26,7 @@ import numpy as np
 import torch
 
 from dyadbench.errors import InputError
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput, predict_in_groups
 from models.sfms.bundle import SFMS
 from models.sfms.data import speaker_rows
 from models.sfms.infer import Roller, speaker_window
@@ -46,7 +46,8 @@ class SFMSStreamingModel(StreamingModel):
         self.roller = Roller(model, greedy=greedy)
         self.tok, self.pred = model.tokenizer, model.predictor
         self.info = info
-        self._ctx: StreamContext | None = None
+        self._stream: _Stream | None = None  # the stream of start_stream / predict_turn
+        self._slots: dict[int, _Stream] = {}  # the streams of start_streams / predict_turns
 
     def _new_stream(self, ctx: StreamContext) -> _Stream:
         if ctx.user is None:
@@ -55,12 +56,10 @@ class SFMSStreamingModel(StreamingModel):
 
     def start_stream(self, ctx: StreamContext) -> None:
         self._stream = self._new_stream(ctx)
-        self._ctx = ctx
 
     def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
-        slots = self.__dict__.setdefault("_slots", {})
         for slot, ctx in contexts.items():
-            slots[slot] = self._new_stream(ctx)
+            self._slots[slot] = self._new_stream(ctx)
 
     def _inputs(self, turn: TurnInput, ctx: StreamContext) -> tuple[torch.Tensor, torch.Tensor]:
         """Normalised partner motion (1, N, d) and speech rows (1, N·rows, bins) of the turn window: the
@@ -79,28 +78,21 @@ class SFMSStreamingModel(StreamingModel):
         return motion[None], audio[None]
 
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        if self._ctx is None:
+        if self._stream is None:
             raise RuntimeError("predict_turn called before start_stream")
         return self._roll([self._stream], [turn])[0]
 
     def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
-        slots = self.__dict__.get("_slots", {})
-        missing = [t.stream for t in turns if t.stream not in slots]
+        missing = [t.stream for t in turns if t.stream not in self._slots]
         if missing:
             raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
-        outs: list[np.ndarray | None] = [None] * len(turns)
-        for group in self._groups(turns):
-            for i, out in zip(group, self._roll([slots[turns[i].stream] for i in group], [turns[i] for i in group])):
-                outs[i] = out
-        return outs
+        return predict_in_groups(turns, self._group_key, lambda group: self._roll(
+            [self._slots[turns[i].stream] for i in group], [turns[i] for i in group]))
 
-    def _groups(self, turns: Sequence[TurnInput]) -> list[list[int]]:
-        """Indices of the turns run as one batch: equal turn lengths together (per-channel allocation: one
-        at a time, see the module docstring)."""
-        if self.tok.cfg.per_channel:
-            return [[i] for i in range(len(turns))]
-        lengths = dict.fromkeys(t.frames_per_turn for t in turns)
-        return [[i for i, t in enumerate(turns) if t.frames_per_turn == length] for length in lengths]
+    def _group_key(self, i: int, turn: TurnInput) -> object:
+        """Turns run as one batch share a key: equal turn lengths (per-channel allocation: each turn alone,
+        see the module docstring)."""
+        return ("alone", i) if self.tok.cfg.per_channel else turn.frames_per_turn
 
     @torch.no_grad()
     def _roll(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:

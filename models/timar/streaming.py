@@ -37,7 +37,7 @@ import numpy as np
 import torch
 
 from dyadbench.errors import ConfigError
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput, predict_in_groups
 from models.timar.backbone import KV
 from models.timar.frontends import SpeechFrontend
 from models.timar.layouts import timar_layout
@@ -112,17 +112,13 @@ class _TimarStreamBase(StreamingModel):
 
     @torch.no_grad()
     def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
-        groups: dict[tuple, list[int]] = {}
-        for i, turn in enumerate(turns):
-            groups.setdefault(self._group_key(turn, self._streams[turn.stream]), []).append(i)
-        out: list[np.ndarray | None] = [None] * len(turns)
-        for members in groups.values():
+        def predict(members: list[int]) -> np.ndarray:
             frames = self._predict([self._streams[turns[i].stream] for i in members], [turns[i] for i in members])
             if self.layout.valid_column is not None:  # every generated frame is claimed valid
                 frames = torch.cat([frames, frames.new_ones(*frames.shape[:-1], 1)], dim=-1)
-            for i, x in zip(members, frames.cpu().numpy().astype(np.float32)):
-                out[i] = x
-        return out
+            return frames.cpu().numpy().astype(np.float32)
+
+        return predict_in_groups(turns, lambda _, turn: self._group_key(turn, self._streams[turn.stream]), predict)
 
     @property
     def _branches(self) -> int:
