@@ -32,9 +32,7 @@ from models.timar.backbone import KV, Block, concat_past
 from models.timar.config import NUM_SPECIAL_TOKENS, TimarConfig
 from models.timar.diffusion import GaussianDiffusion
 from models.timar.head import DiffusionHead
-from models.timar.layouts import FLAME56, timar_layout
-
-GROUPS = FLAME56.loss_groups  # exp | jaw | pose: equal loss weights (flame56; the layout's groups in general)
+from models.timar.layouts import timar_layout
 
 
 def with_motion_statistics(state: dict, motion_dim: int) -> dict:
