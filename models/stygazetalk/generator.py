@@ -5,10 +5,13 @@ Window alignment (D5, one-frame lag): step i of a window reads the audio of fram
 frame u+i−1, and predicts frame u+i. :meth:`MotionGenerator.forward` runs all M steps teacher-forced,
 or switches to its own outputs from step ``free_from`` on (the autoregressive part of inference, and
 rollout training, D9). Every window starts from the learned (h0, c0) [P §3.2].
+:meth:`MotionGenerator.generate_blocks` generates the windows of several streams together (batched streaming)
+with each row bit for bit its own :meth:`MotionGenerator.generate_block`.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Callable
 
 import torch
@@ -121,3 +124,45 @@ class MotionGenerator(nn.Module):
         if known.shape[1] != warmup + 1:
             raise ValueError(f"generate_block needs W+1={warmup + 1} known frames, got {known.shape[1]}")
         return self.forward(audio, known, style, free_from=warmup + 1, draw=draw)[:, warmup:]
+
+    def generate_blocks(self, audio: torch.Tensor, known: torch.Tensor, style: torch.Tensor | None,
+                        draws: Sequence[Callable[[torch.Tensor], torch.Tensor] | None]) -> torch.Tensor:
+        """:meth:`generate_block` of B windows (B, N, 7), row b bit for bit ``generate_block`` of row b alone
+        with ``draws[b]`` (its stream's sampled decoding, or None).
+
+        A matrix product over several rows can round differently from the same product over one row, and
+        the autoregressive loop amplifies such a difference (degrees after a session), so only the work
+        that is computed identically for one row and for many (measured, and checked by the tests) runs
+        batched: the fusion, output head and style rows of the W+1 warm-up steps, and each free-running LSTM
+        step. The warm-up pass through the LSTM (a sequence kernel whose blocking depends on the batch), the
+        one-frame projections (a matrix–vector product for one row) and the draws run row by row. The
+        Transformer backbone runs its rows one at a time.
+        """
+        rows = audio.shape[0]
+        if len(draws) != rows:
+            raise ValueError(f"generate_blocks needs one draw per row: {len(draws)} for {rows} rows")
+        styles = [None if style is None else style[b:b + 1] for b in range(rows)]
+        if rows == 1 or not isinstance(self.core, LSTMCore):
+            return torch.cat([self.generate_block(audio[b:b + 1], known[b:b + 1], styles[b], draws[b])
+                              for b in range(rows)])
+        warmup, steps = self.cfg.warmup, audio.shape[1]
+        if known.shape[1] != warmup + 1:
+            raise ValueError(f"generate_blocks needs W+1={warmup + 1} known frames, got {known.shape[1]}")
+        fused = self.fuse(audio[:, :warmup + 1], known, style)
+        first = [self.core(fused[b:b + 1], self.core.initial_state(1)) for b in range(rows)]
+        hidden = torch.cat([h for h, _ in first])
+        state = tuple(torch.cat([s[k] for _, s in first], dim=1) for k in range(2))
+        prev = self._emit(hidden, known)[:, -1:]  # the head over all W+1 rows, as generate_block runs it
+        prev = torch.cat([prev[b:b + 1] if draw is None else draw(prev[b:b + 1]) for b, draw in enumerate(draws)])
+        outputs = [prev]
+        for i in range(warmup + 1, steps):
+            z = torch.cat([self.fuse(audio[b:b + 1, i:i + 1], prev[b:b + 1], styles[b]) for b in range(rows)])
+            hidden, state = self.core(z, state)
+            prev = torch.cat([self._draw_row(draws[b], self._emit(hidden[b:b + 1], prev[b:b + 1]))
+                              for b in range(rows)])
+            outputs.append(prev)
+        return torch.cat(outputs, dim=1)
+
+    @staticmethod
+    def _draw_row(draw: Callable[[torch.Tensor], torch.Tensor] | None, frame: torch.Tensor) -> torch.Tensor:
+        return frame if draw is None else draw(frame)

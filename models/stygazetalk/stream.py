@@ -15,58 +15,100 @@
   itself, whatever the protocol's history-agent policy.
 - With sampled decoding (X1, an extension) the frames are drawn from a generator seeded by the
   protocol's per-stream seed, so a run is reproducible and causal.
+
+Batched streaming (``predict_turns``): each stream keeps its own track (seed and own outputs), context and
+generator; the windows the open streams generate at the same offset within their turns run as one batch
+(:meth:`~models.stygazetalk.system.StyGazeTalkSystem.next_blocks`), row b drawing from stream b's generator
+what it would draw alone, while seed turns are copied per stream. Turns of different frame counts run in
+groups of equal length. One stream is bit for bit ``predict_turn``; a batch of several rounds its matrix
+products differently, so its outputs equal streaming each direction alone up to float round-off (about
+1e-4 degrees after a whole test session, measured; the tests allow 1e-3).
 """
 
 from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, SAMPLE_RATE
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput
+from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput, predict_in_groups
 from models.stygazetalk.audio import HOP
 from models.stygazetalk.generation import decoding_rng, mpgw_seed
 from models.stygazetalk.system import StyGazeTalkSystem
+
+
+@dataclass
+class _Stream:
+    """One stream's state: its context, decoding generator and motion track (seed, then own outputs)."""
+
+    ctx: StreamContext
+    rng: torch.Generator
+    track: np.ndarray
 
 
 class StyGazeTalkStream(StreamingModel):
     def __init__(self, system: StyGazeTalkSystem, info: ModelInfo, style: torch.Tensor | None = None,
                  run_seed: int = 0):
         self.system, self.info, self.style, self.run_seed = system.eval(), info, style, run_seed
-        self._track = np.zeros((0, 7), np.float32)
-        self._ctx: StreamContext | None = None
-        self._rng = decoding_rng(0)
+        self._stream: _Stream | None = None  # the stream of start_stream / predict_turn
+        self._slots: dict[int, _Stream] = {}  # the streams of start_streams / predict_turns
 
-    def start_stream(self, ctx: StreamContext) -> None:
+    def _new_stream(self, ctx: StreamContext) -> _Stream:
         if ctx.fps != FPS or ctx.sample_rate != SAMPLE_RATE:
             raise InputError(ctx.clip_id, f"StyGazeTalk runs at {FPS:g} fps / {SAMPLE_RATE} Hz, "
                                           f"got {ctx.fps:g} fps / {ctx.sample_rate} Hz")
         if self.system.cfg.window % ctx.frames_per_turn:
             raise ConfigError(f"the turn length ({ctx.frames_per_turn} frames) must divide the seed window "
                               f"M = {self.system.cfg.window}")
-        self._ctx = ctx
-        self._rng = decoding_rng(ctx.seed)
-        self._track = np.zeros((ctx.num_turns * ctx.frames_per_turn, 7), np.float32)
+        return _Stream(ctx, decoding_rng(ctx.seed), np.zeros((ctx.num_turns * ctx.frames_per_turn, 7), np.float32))
+
+    def start_stream(self, ctx: StreamContext) -> None:
+        self._stream = self._new_stream(ctx)
+
+    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
+        for slot, ctx in contexts.items():
+            self._slots[slot] = self._new_stream(ctx)
 
     def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        cfg, F = self.system.cfg, turn.frames_per_turn
-        lo, hi = turn.turn * F, (turn.turn + 1) * F
-        if hi <= cfg.window:
-            self._track[lo:hi] = self._seed_turn(turn)
-            return self._track[lo:hi].copy()
-        audio_start = (turn.turn - turn.history_turns) * F  # first frame covered by agent_audio
-        t = lo
-        while t < hi:
-            u = t - cfg.warmup
-            wave = _frames_of(turn.agent_audio, u - audio_start, cfg.window)
-            block = self.system.next_block(wave, self._track[t - cfg.window:t], self.style, self._rng)
-            take = min(cfg.horizon, hi - t)
-            self._track[t:t + take] = block[:take]
-            t += take
-        return self._track[lo:hi].copy()
+        if self._stream is None:
+            raise RuntimeError("predict_turn called before start_stream")
+        return self._turns([self._stream], [turn])[0]
 
-    def _seed_turn(self, turn: TurnInput) -> np.ndarray:
+    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
+        missing = [t.stream for t in turns if t.stream not in self._slots]
+        if missing:
+            raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
+        return predict_in_groups(turns, lambda i, turn: turn.frames_per_turn, lambda group: self._turns(
+            [self._slots[turns[i].stream] for i in group], [turns[i] for i in group]))
+
+    def _turns(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
+        """The current turn of each stream (turns of one length): seed turns copied, the others generated window
+        by window, the windows of all generating streams at one offset within the turn in one batch."""
+        cfg, F = self.system.cfg, turns[0].frames_per_turn
+        generating = []
+        for stream, turn in zip(streams, turns):
+            lo, hi = turn.turn * F, (turn.turn + 1) * F
+            if hi <= cfg.window:
+                stream.track[lo:hi] = self._seed_turn(turn, stream.ctx)
+            else:
+                generating.append((stream, turn))
+        for offset in range(0, F, cfg.horizon) if generating else ():
+            starts = [turn.turn * F + offset for _, turn in generating]  # each stream's first new frame t
+            # the window's audio starts at u = t − W, relative to the first frame agent_audio covers
+            waves = [_frames_of(turn.agent_audio, t - cfg.warmup - (turn.turn - turn.history_turns) * F, cfg.window)
+                     for (_, turn), t in zip(generating, starts)]
+            recents = [stream.track[t - cfg.window:t] for (stream, _), t in zip(generating, starts)]
+            blocks = self.system.next_blocks(waves, recents, self.style, [stream.rng for stream, _ in generating])
+            take = min(cfg.horizon, F - offset)
+            for (stream, _), t, block in zip(generating, starts, blocks):
+                stream.track[t:t + take] = block[:take]
+        return [stream.track[turn.turn * F:(turn.turn + 1) * F].copy() for stream, turn in zip(streams, turns)]
+
+    def _seed_turn(self, turn: TurnInput, ctx: StreamContext) -> np.ndarray:
         gt = turn.agent_motion_oracle
         if gt is None:
             raise ConfigError(f"{self.info.name}: the protocol handed no seed frames for turn {turn.turn}; "
@@ -75,7 +117,7 @@ class StyGazeTalkStream(StreamingModel):
         seed = np.asarray(gt[-turn.frames_per_turn:], dtype=np.float32)
         if self.system.cfg.seed_window == "mpgw-sim":
             seed = mpgw_seed(seed, self.system.cfg.mpgw_bias_sd_deg, self.system.cfg.mpgw_noise_sd_deg,
-                             self.run_seed, self._ctx.clip_id, offset=turn.turn * turn.frames_per_turn,
+                             self.run_seed, ctx.clip_id, offset=turn.turn * turn.frames_per_turn,
                              total=self.system.cfg.window)
         return seed
 

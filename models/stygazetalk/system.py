@@ -2,10 +2,14 @@
 
 Everything inference needs is a buffer or parameter of :class:`StyGazeTalkSystem`, so one checkpoint
 file restores it (``state_dict`` + the two configs). :meth:`StyGazeTalkSystem.next_block` produces the
-N frames of one inference window (spec §2.10) from raw speech and the known motion track.
+N frames of one inference window (spec §2.10) from raw speech and the known motion track;
+:meth:`StyGazeTalkSystem.next_blocks` produces the windows of several streams together (batched streaming),
+each row as :meth:`~StyGazeTalkSystem.next_block` gives it alone, its draws from its own stream's generator.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import numpy as np
 import torch
@@ -84,15 +88,31 @@ class StyGazeTalkSystem(nn.Module):
         - ``style``: a fixed style vector (style transfer) instead of SE(last M frames).
         - ``rng``: the stream's generator for sampled decoding (X1); unused with mean decoding.
         """
+        return self.next_blocks([waveform], [recent], style, [rng])[0]
+
+    @torch.no_grad()
+    def next_blocks(self, waveforms: Sequence[np.ndarray], recents: Sequence[np.ndarray],
+                    style: torch.Tensor | None = None, rngs: Sequence[torch.Generator | None] | None = None
+                    ) -> list[np.ndarray]:
+        """:meth:`next_block` of B windows (one per stream) together: the N frames (N, 7) in degrees following
+        each ``recents[b]``, ``waveforms[b]`` its speech, ``rngs[b]`` its stream's generator; ``style``: a fixed
+        (1, d_s) style for every row. Each row is bit for bit what :meth:`next_block` gives it alone
+        (:meth:`~models.stygazetalk.generator.MotionGenerator.generate_blocks`)."""
         cfg = self.cfg
-        if recent.shape[0] < cfg.window or waveform.shape[0] != cfg.window * HOP:
-            raise ValueError(f"next_block needs >= {cfg.window} known frames and {cfg.window * HOP} samples, "
-                             f"got {recent.shape[0]} frames and {waveform.shape[0]} samples")
-        known = torch.from_numpy(self.motion_norm.np(recent[-cfg.window:]))[None]
-        audio = torch.from_numpy(self.audio_window(waveform))[None]
-        s = style if style is not None else self.style(known)
-        block = self.generator.generate_block(audio, known[:, -(cfg.warmup + 1):], s, self.drawer(rng))
-        return self.motion_norm.np_inverse(block[0].numpy())
+        rngs = [None] * len(recents) if rngs is None else list(rngs)
+        if not recents or not len(waveforms) == len(recents) == len(rngs):
+            raise ValueError(f"next_blocks needs one waveform and one generator per motion track, got "
+                             f"{len(waveforms)}, {len(rngs)} and {len(recents)}")
+        for waveform, recent in zip(waveforms, recents):
+            if recent.shape[0] < cfg.window or waveform.shape[0] != cfg.window * HOP:
+                raise ValueError(f"next_block needs >= {cfg.window} known frames and {cfg.window * HOP} samples, "
+                                 f"got {recent.shape[0]} frames and {waveform.shape[0]} samples")
+        known = torch.from_numpy(np.stack([self.motion_norm.np(recent[-cfg.window:]) for recent in recents]))
+        audio = torch.from_numpy(np.stack([self.audio_window(waveform) for waveform in waveforms]))
+        s = style.expand(len(recents), -1) if style is not None else self.style(known)
+        block = self.generator.generate_blocks(audio, known[:, -(cfg.warmup + 1):], s,
+                                               [self.drawer(rng) for rng in rngs])
+        return [self.motion_norm.np_inverse(row.numpy()) for row in block]
 
     @torch.no_grad()
     def reference_style(self, motion_deg: np.ndarray) -> torch.Tensor:
