@@ -20,9 +20,10 @@ Batched streaming (``predict_turns``): each stream keeps its own track (seed and
 generator; the windows the open streams generate at the same offset within their turns run as one batch
 (:meth:`~models.stygazetalk.system.StyGazeTalkSystem.next_blocks`), row b drawing from stream b's generator
 what it would draw alone, while seed turns are copied per stream. Turns of different frame counts run in
-groups of equal length. One stream is bit for bit ``predict_turn``; a batch of several rounds its matrix
-products differently, so its outputs equal streaming each direction alone up to float round-off (about
-1e-4 degrees after a whole test session, measured; the tests allow 1e-3).
+groups of equal length. Every stream's output is bit for bit what streaming it alone gives: the batch runs
+only the arithmetic that rounds the same for one row and for many, the rest row by row
+(:meth:`~models.stygazetalk.generator.MotionGenerator.generate_blocks`; a plain batched pass rounds the
+one-frame products differently, and the autoregressive loop grows that into degrees over a session).
 """
 
 from __future__ import annotations
