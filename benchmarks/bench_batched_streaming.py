@@ -1,7 +1,8 @@
 """Batched streaming: per-turn latency and throughput of each reference model at batch 1 and batched.
 
 Streams a fixed subset of the embedded corpus (the first ``--clips`` dialogues of the ood split, both
-directions; StyGazeTalk: the first ``--clips`` sessions of the embedded gaze-head test split) through the
+directions; StyGazeTalk: the first ``--gaze-sessions`` sessions of the embedded gaze-head test split, by
+default as many as the dialogues' directions, one direction each) through the
 progressive-context protocol at n = 0, 3, 7, on one and on two CPU threads, one direction at a time
 (``stream_agent``, batch 1: today's ``dyadbench eval``) and ``--batch`` directions together
 (``stream_agents``), and prints per cell:
@@ -12,8 +13,9 @@ progressive-context protocol at n = 0, 3, 7, on one and on two CPU threads, one 
 - CPU seconds per turn (this process, all threads) and the largest |difference| between the batched and
   the batch-1 predictions (0 = bit for bit).
 
-A batch-size sweep of TIMAR at n = 7 (``--sweep-clips`` dialogues, one thread) shows where throughput
-levels off, which sets ``dyadbench eval --batch``'s default. With ``--rss`` it also runs ``dyadbench eval``
+A batch-size sweep at n = 7 (one thread) of TIMAR (``--sweep-clips`` dialogues) and StyGazeTalk (as many
+sessions as those dialogues' directions, at most the split's 8) shows where throughput levels off, which
+sets ``dyadbench eval --batch``'s default. With ``--rss`` it also runs ``dyadbench eval``
 (mean-frame) and ``dyadbench score`` on the whole embedded test split in child processes and reports their
 peak resident memory (``resource.getrusage``).
 
@@ -23,6 +25,7 @@ peak resident memory (``resource.getrusage``).
 from __future__ import annotations
 
 import argparse
+import os
 import resource
 import subprocess
 import sys
@@ -45,6 +48,14 @@ from output import RESULTS, write_result  # noqa: E402  (benchmarks/output.py)
 MODELS = {"timar": ("synthetic", "ood"), "timar-stream": ("synthetic", "ood"), "dualtalk": ("synthetic", "ood"),
           "sfms": ("synthetic", "ood"), "stygazetalk": ("synthetic-gaze", "test")}
 CONTEXTS = (0, 3, 7)
+
+
+def streams_of(name: str, dialogues: int, gaze_sessions: int | None = None) -> tuple[list[tuple], str]:
+    """The directions ``name`` streams: ``dialogues`` dialogues' (both directions), or for a gaze-head model
+    ``gaze_sessions`` sessions (default: as many as those dialogues' directions)."""
+    dataset, split = MODELS[name]
+    gaze = dataset == "synthetic-gaze"
+    return directions(dataset, split, (gaze_sessions or 2 * dialogues) if gaze else dialogues)
 
 
 def directions(dataset: str, split: str, clips: int) -> tuple[list[tuple], str]:
@@ -104,20 +115,23 @@ def peak_rss(args: list[str]) -> tuple[float, float]:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--clips", type=int, default=3, help="dialogues (sessions) of each model's split")
+    parser.add_argument("--clips", type=int, default=3, help="dialogues of each dialogue model's split")
+    parser.add_argument("--gaze-sessions", type=int, default=None,
+                        help="sessions of the gaze-head split (StyGazeTalk) [default: 2 x --clips]")
     parser.add_argument("--threads", default="1,2", help="CPU thread counts of the cells")
     parser.add_argument("--models", default=",".join(MODELS), help="reference models of the cells")
     parser.add_argument("--batch", type=int, default=16, help="batch of the batched runs")
-    parser.add_argument("--sweep-clips", type=int, default=12, help="dialogues of the TIMAR batch-size sweep")
+    parser.add_argument("--sweep-clips", type=int, default=12, help="dialogues of the batch-size sweep")
+    parser.add_argument("--sweep-models", default="timar,stygazetalk", help="models of the batch-size sweep")
     parser.add_argument("--sweep", default="1,4,8,16,24", help="batch sizes of the sweep")
     parser.add_argument("--rss", action="store_true", help="also measure peak RSS of eval and score (test split)")
     parser.add_argument("--out", default=str(RESULTS / "batched_streaming"))
     args = parser.parse_args()
 
-    started_cpu = time.process_time()
+    started_cpu, load_before = time.process_time(), os.getloadavg()[0]
     rows = []
     for name in args.models.split(","):
-        dirs, layout = directions(*MODELS[name], args.clips)
+        dirs, layout = streams_of(name, args.clips, args.gaze_sessions)
         for threads in (int(t) for t in args.threads.split(",")):
             for context in CONTEXTS:
                 rows.append(cell(name, dirs, layout, context, threads, args.batch))
@@ -127,13 +141,15 @@ def main() -> None:
                       flush=True)
 
     set_threads(1)
-    dirs, layout = directions("synthetic", "ood", args.sweep_clips)
     sweep = []
-    for batch in (int(b) for b in args.sweep.split(",")):
-        r = run("timar", dirs, layout, 7, batch)
-        sweep.append({"batch": batch, "turns": r["turns"], "turns_per_s": r["turns"] / r["wall_s"],
-                      "call_latency_ms": 1e3 * r["wall_s"] / r["calls"], "cpu_ms_per_turn": 1e3 * r["cpu_s"] / r["turns"]})
-        print(f"timar n=7 batch {batch}: {sweep[-1]['turns_per_s']:.1f} turns/s", flush=True)
+    for name in args.sweep_models.split(","):
+        dirs, layout = streams_of(name, args.sweep_clips)
+        for batch in (int(b) for b in args.sweep.split(",")):
+            r = run(name, dirs, layout, 7, batch)
+            sweep.append({"model": name, "batch": batch, "streams": len(dirs), "turns": r["turns"],
+                          "turns_per_s": r["turns"] / r["wall_s"], "call_latency_ms": 1e3 * r["wall_s"] / r["calls"],
+                          "cpu_ms_per_turn": 1e3 * r["cpu_s"] / r["turns"]})
+            print(f"{name} n=7 batch {batch}: {sweep[-1]['turns_per_s']:.1f} turns/s", flush=True)
 
     rss = {}
     if args.rss:
@@ -142,22 +158,25 @@ def main() -> None:
                                     "--threads", "1", "--out", f"{tmp}/eval"])
             source = DATASETS.load("synthetic")(None, "test")
             rss["score"] = peak_rss(["score", f"{tmp}/eval/predictions", "--gt", str(source.root)])
-    cpu_total = time.process_time() - started_cpu
-    write_result(args.out, render(rows, sweep, rss, args, cpu_total), seed=0,
-                 data={"cells": rows, "sweep": sweep, "rss_mib": rss, "cpu_s": cpu_total})
+    cpu_total, load = time.process_time() - started_cpu, (load_before, os.getloadavg()[0])
+    write_result(args.out, render(rows, sweep, rss, args, cpu_total, load), seed=0,
+                 data={"cells": rows, "sweep": sweep, "rss_mib": rss, "cpu_s": cpu_total, "load_average_1min": load})
 
 
-def render(rows: list[dict], sweep: list[dict], rss: dict, args, cpu_total: float) -> str:
+def render(rows: list[dict], sweep: list[dict], rss: dict, args, cpu_total: float,
+           load: tuple[float, float]) -> str:
     lines = ["# Batched streaming: throughput and latency per reference model", "",
              f"Produced by `python benchmarks/bench_batched_streaming.py` (shipped tiny checkpoints, CPU). Subset: "
              f"the first {args.clips} dialogues of the embedded ood split, both directions (StyGazeTalk: the first "
-             f"{args.clips} sessions of the embedded gaze-head test split); batch 1 streams one direction at a "
+             f"{args.gaze_sessions or 2 * args.clips} sessions of the embedded gaze-head test split, one direction "
+             "each); batch 1 streams one direction at a "
              f"time (`stream_agent`, as `dyadbench eval --batch 1`), batch {args.batch} streams up to "
              f"{args.batch} directions together (`stream_agents`). Latency: mean wall-clock time of one model "
              "call (batch 1: one turn; batched: the turns of every open stream). max |diff|: largest difference "
              f"between the batched and the batch-1 predictions (0: bit for bit). Whole run: {cpu_total:.0f} CPU s "
-             "of this process, measured while model trainings shared the two cores, so absolute times are "
-             "pessimistic and the ratios are the numbers to read.", "",
+             f"of this process, measured while model trainings shared the {os.cpu_count()} cores (one-minute load "
+             f"average {load[0]:.2f} at the start, {load[1]:.2f} at the end), so absolute times are pessimistic "
+             "and the ratios (and CPU ms per turn) are the numbers to read.", "",
              "| model | n | threads | turns | b1 turns/s | batched turns/s | speed-up | b1 latency ms | "
              "batched latency ms | b1 CPU ms/turn | batched CPU ms/turn | max abs diff |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -166,11 +185,13 @@ def render(rows: list[dict], sweep: list[dict], rss: dict, args, cpu_total: floa
                      f"{r['bN_turns_per_s']:.1f} | {r['speedup']:.2f} | {r['b1_call_latency_ms']:.1f} | "
                      f"{r['bN_call_latency_ms']:.1f} | {r['b1_cpu_ms_per_turn']:.2f} | {r['bN_cpu_ms_per_turn']:.2f} | "
                      f"{r['max_abs_diff']:.2g} |")
-    lines += ["", f"## TIMAR batch size (n = 7, one thread, first {args.sweep_clips} ood dialogues)", "",
-              "| batch | turns | turns/s | call latency ms | CPU ms/turn |", "|---|---|---|---|---|"]
+    lines += ["", f"## Batch size (n = 7, one thread; TIMAR: first {args.sweep_clips} ood dialogues, both "
+              "directions; StyGazeTalk: as many gaze-head test sessions, at most 8)", "",
+              "| model | streams | batch | turns | turns/s | call latency ms | CPU ms/turn |",
+              "|---|---|---|---|---|---|---|"]
     for s in sweep:
-        lines.append(f"| {s['batch']} | {s['turns']} | {s['turns_per_s']:.1f} | {s['call_latency_ms']:.1f} | "
-                     f"{s['cpu_ms_per_turn']:.2f} |")
+        lines.append(f"| {s['model']} | {s['streams']} | {s['batch']} | {s['turns']} | {s['turns_per_s']:.1f} | "
+                     f"{s['call_latency_ms']:.1f} | {s['cpu_ms_per_turn']:.2f} |")
     if rss:
         lines += ["", "## Peak resident memory on the whole embedded test split", "",
                   "| command | peak RSS MiB | wall s |", "|---|---|---|"]

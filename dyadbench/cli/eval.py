@@ -26,8 +26,9 @@ from dyadbench.results import EvalResult, load_result
 from dyadbench.scoring import policy
 
 EMBEDDED = DEFAULT_EMBEDDED
-#: --batch default: the largest batch measured in benchmarks/results/batched_streaming.md (TIMAR at n = 7 was
-#: fastest there).
+#: --batch default, from the batch-size sweep in benchmarks/results/batched_streaming.md (n = 7, one thread): TIMAR
+#: levels off from batch 4 (4 and 8 equal within the noise), StyGazeTalk still gains at 8 (its 8 gaze-head test
+#: sessions: 2.4x the turns/s of batch 1, against 1.8x at batch 4).
 DEFAULT_BATCH = 8
 
 
@@ -62,8 +63,8 @@ def data_options(f: Callable) -> Callable:
                      help="Directions (clip x participant) streamed together, their turns handed to the model in "
                           "one call (per process). Predictions are those of streaming one direction at a time, "
                           "so it is not recorded; models that batch their forward passes (TIMAR, "
-                          "TIMAR-stream, DualTalk, SFMS) run faster, the others loop over the batch. 1: one at a "
-                          "time."),
+                          "TIMAR-stream, DualTalk, SFMS, StyGazeTalk) run faster, the others loop over the batch. "
+                          "1: one at a time."),
     ]
     return functools.reduce(lambda g, opt: opt(g), reversed(options), f)
 
