@@ -132,11 +132,13 @@ class MotionGenerator(nn.Module):
 
         A matrix product over several rows can round differently from the same product over one row, and
         the autoregressive loop amplifies such a difference (degrees after a session), so only the work
-        that is computed identically for one row and for many (measured, and checked by the tests) runs
-        batched: the fusion, output head and style rows of the W+1 warm-up steps, and each free-running LSTM
-        step. The warm-up pass through the LSTM (a sequence kernel whose blocking depends on the batch), the
-        one-frame projections (a matrix–vector product for one row) and the draws run row by row. The
-        Transformer backbone runs its rows one at a time.
+        that is computed identically for one row and for many (measured with torch 2.13's CPU kernels, and
+        checked by the tests) runs batched: the fusion and output head over the W+1 warm-up steps and each
+        free-running LSTM step (and the style encoder, in
+        :meth:`~models.stygazetalk.system.StyGazeTalkSystem.next_blocks`). The warm-up pass through the LSTM
+        (a sequence kernel whose blocking depends on the batch), the one-frame projections (a matrix–vector
+        product for one row) and the draws run row by row. The Transformer backbone runs its rows one at a
+        time.
         """
         rows = audio.shape[0]
         if len(draws) != rows:
