@@ -230,19 +230,20 @@ def load_result(path: str | Path) -> EvalResult:
 
 
 def external_result(report, *, model: str, dataset: str, split: str, root: str | None, predictions: str,
-                    wall_s: float, seed: int) -> EvalResult:
+                    wall_s: float, seed: int, oracle: bool = False) -> EvalResult:
     """The typed result of predictions scored from disk (``dyadbench score``): ``report`` is the suite's
     :class:`~dyadbench.scoring.report.ScoreReport`, ``model`` the name the predictions are ranked under.
 
     ``clips`` counts the dialogues of the scored items (:func:`dyadbench.uncertainty.dialogue_of`), ``items``
     the scored predictions; the protocol is :data:`EXTERNAL` with the scoring seed; timing is the scoring
-    wall time (no model ran: 0 turns); the score configuration is kept under ``model.config``.
+    wall time (no model ran: 0 turns); the score configuration is kept under ``model.config``. ``oracle``:
+    the predictions copy the ground truth (a pipeline check, never ranked).
     """
     from dyadbench.uncertainty import dialogue_of  # noqa: PLC0415  (imports the gaze layout)
 
     rows = list(report.per_item)
     return EvalResult(
-        model=ModelRecord(name=model, version=EXTERNAL, weights_digest=None, weights_path=None, oracle=False,
+        model=ModelRecord(name=model, version=EXTERNAL, weights_digest=None, weights_path=None, oracle=oracle,
                           layout=_SUITE_LAYOUTS.get(report.suite, report.suite), config=dict(report.config)),
         data=DataRecord(dataset=dataset, split=split, root=root,
                         clips=len({dialogue_of(report.suite, str(r["clip"])) for r in rows}), items=len(rows)),

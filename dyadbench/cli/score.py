@@ -69,9 +69,12 @@ def default_model_name(pred: Path) -> str:
                    "few frames). Predictions without ground truth are listed, never fatal.")
 @click.option("--seed", default=0, show_default=True, type=SEED,
               help="Seed for the randomised metrics (diversity index draws); recorded in the result.")
+@click.option("--oracle", is_flag=True,
+              help="PRED copies the ground truth (e.g. REACT's GT baseline): recorded in the result, so the "
+                   "leaderboard marks the row and never ranks it.")
 @scheduler_option
 def score(pred: Path, gt: Path, suite: str, split: str | None, model: str | None, out: Path | None, jobs: int,
-          strict: bool, seed: int) -> None:
+          strict: bool, seed: int, oracle: bool) -> None:
     """Score PRED against ground truth GT with the metrics of the published scripts.
 
     By default the predictions present are scored and coverage is reported; --strict fails on gaps.
@@ -92,7 +95,7 @@ def score(pred: Path, gt: Path, suite: str, split: str | None, model: str | None
         result = external_result(report, model=model or default_model_name(pred), dataset=suite,
                                  split=split or report.config.get("split") or Path(gt).resolve().name,
                                  root=str(gt), predictions=str(pred),
-                                 wall_s=time.perf_counter() - started, seed=seed)
+                                 wall_s=time.perf_counter() - started, seed=seed, oracle=oracle)
         with kept_on_failure(out / "result.json", lambda: atomic.to_json(result.to_dict())):
             json_path = result.write(out / "result.json")
             csv_path = report.write_per_item(out / "per_clip.csv")

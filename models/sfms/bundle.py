@@ -46,6 +46,12 @@ def load_tokenizer(path: str | Path) -> SFMSTokenizer:
     return tokenizer_from_checkpoint(payload)
 
 
+def checkpoint_layout(meta: dict) -> str:
+    """The motion layout a checkpoint was trained on (its ``meta["data"]["layout"]``; checkpoints written
+    before training recorded it were all trained on flame56 motion)."""
+    return (meta.get("data") or {}).get("layout", "flame56")
+
+
 def load_sfms(path: str | Path) -> tuple[SFMS, dict]:
     """(model in eval mode, checkpoint meta) from a ``dyadbench train sfms`` checkpoint."""
     payload = load_checkpoint(path, expect_model=PREDICTOR_MODEL)

@@ -63,7 +63,8 @@ def load_split_clips(dataset: str, root: Path | None, clips: int | None, val_fra
         raise ConfigError(f"--val-frac {val_frac} holds out all {len(ids)} clips; none is left to train on")
     val_ids = sorted(ids[i] for i in order[:n_val])
     train_ids = [i for i in ids if i not in set(val_ids)]
-    describe = {**source.describe(), "clips_used": len(ids), "val_clips": val_ids}
+    describe = {**source.describe(), "layout": source.load(ids[0]).layout, "clips_used": len(ids),
+                "val_clips": val_ids}
     return _lazy(source, train_ids), _lazy(source, val_ids), describe
 
 
@@ -181,6 +182,15 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
     take --dataset synthetic and it exports models/sfms/checkpoints/sfms-tiny.pt):
       dyadbench train sfms --config tiny --clips 400 --steps 4000 --tokenizer sfms-tok.pt
           --export models/sfms/checkpoints/sfms-tiny-v2.pt
+
+    \b
+    The REACT variant (25-d emotion features, no audio branch; models/sfms/react.py), on the embedded
+    corpus written in the REACT layout into out/react-synth (dyadbench data synth --layout react --split train):
+      dyadbench train sfms-tokenizer --config tiny --dataset react --data out/react-synth --set dim=25
+          --export out/sfms-tok-react.pt
+      dyadbench train sfms --config tiny --dataset react --data out/react-synth --steps 8000
+          --set speaker_audio=none --set audio_bins=1 --tokenizer out/sfms-tok-react.pt
+          --export models/sfms/checkpoints/sfms-tiny-react.pt
     """
     check_cache()
     check_file(export, f"--export {export}")

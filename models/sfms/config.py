@@ -39,11 +39,23 @@ D31   ``scorer_pe`` ("sinusoidal" | "learned")
 D32   ``suppression_radius`` (not in the paper; 0 = Algorithm 1 and top-k exactly as published): each
       soft and hard keyframe pick also suppresses its r neighbours on each side, so top-k of a
       temporally smooth score cannot pick adjacent frames
+D33   ``PredictorConfig.speaker_audio`` (not in the paper): "speech" (the speaker's speech rows, every
+      shipped flame56 checkpoint) | "none" (no audio branch: no audio encoder and no gated fusion; the
+      speaker is its motion features alone). The REACT variant uses "none": the embedded corpus written in
+      the REACT layout has no audio, and the paper's wav2vec2 features of the real REACT wavs are not
+      available offline (REACT variant: :mod:`models.sfms.react`, decisions D19, D34, D35 there)
+D34   (REACT variant, not a field) generated emotion frames mapped to REACT's ranges: AUs clipped to
+      [0, 1], valence/arousal to [−1, 1], expression probabilities clipped at 0 and renormalised
+      (:func:`models.sfms.react.to_valid_range`)
+D35   (REACT variant, not a field) R = 10 reactions = R independent rollouts from a neutral past, reaction r
+      of a sample sampled from a generator seeded ``derive_seed(seed, "sfms-react", speaker path, r)``
+      (:func:`models.sfms.react.reaction_seed`)
 ====  ============================================================================================
 
-Decisions that concern other datasets (D19 REACT emotion head, D20/D21 L2L protocol and metric
-details, D23 per-host models, D26/D27 naming and data statistics, D29 predecessor quirks) are not
-fields here: they belong to the evaluation suites or were not implemented.
+Decisions that concern other datasets (D20/D21 L2L protocol and metric details, D23 per-host models,
+D26/D27 naming and data statistics, D29 predecessor quirks) are not fields here: they belong to the
+evaluation suites or were not implemented. D19 (REACT output space: the REACT variant models the 25-d
+emotion features directly, no separate emotion head) is documented in :mod:`models.sfms.react`.
 """
 
 from __future__ import annotations
@@ -74,6 +86,7 @@ PREDICTOR_CHOICES = {
     "class_weights": ("group",),
     "sampling": ("multinomial", "greedy"),
     "emit": ("last",),
+    "speaker_audio": ("speech", "none"),
 }
 
 
@@ -202,6 +215,7 @@ class PredictorConfig:
     neutral_prob: float = bounded(0.3, PROBABILITY)  # D24
     pre_start_prob: float = bounded(0.05, PROBABILITY)  # D24
     emit: str = "last"  # D30
+    speaker_audio: str = "speech"  # D33: "speech" | "none" (no audio branch; the REACT variant)
     lr: float = bounded(3e-4, POSITIVE)  # D28
     lr_min: float = bounded(1e-6, NON_NEGATIVE)
     betas: tuple[float, float] = bounded((0.9, 0.98), BELOW_ONE)

@@ -58,7 +58,10 @@ def speech_rows(audio: np.ndarray, sample_rate: int, fps: float, cfg: PredictorC
 def speaker_rows(features: np.ndarray | None, audio: np.ndarray, frames: int, sample_rate: int, fps: float,
                  cfg: PredictorConfig, source: str) -> np.ndarray:
     """The predictor's speech rows for ``frames`` motion frames: the dataset's own speech features when it
-    ships them (checked against ``audio_bins`` and ``audio_rows_per_frame``), else the log-mel of ``audio``."""
+    ships them (checked against ``audio_bins`` and ``audio_rows_per_frame``), else the log-mel of ``audio``;
+    zeros (never read) for a predictor without an audio branch (``speaker_audio = "none"``, D33)."""
+    if cfg.speaker_audio == "none":
+        return np.zeros((frames * cfg.audio_rows_per_frame, cfg.audio_bins), np.float32)
     if features is not None:
         rows, bins = features.shape
         if bins != cfg.audio_bins or rows != frames * cfg.audio_rows_per_frame:

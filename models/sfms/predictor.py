@@ -2,7 +2,8 @@
 
 Inputs of one step predicting listener frames [t, t+F): the listener's past classes (B, P), speaker
 motion (B, P+F, d) and speaker log-mel rows (B, (P+F)·rows, bins) over [t−P, t+F), with a validity
-mask (B, P+F) for frames outside the clip or not yet available. Output: logits (B, F, V), V = codes + 1
+mask (B, P+F) for frames outside the clip or not yet available (with ``speaker_audio = "none"``, D33, the
+rows are ignored and no audio branch exists). Output: logits (B, F, V), V = codes + 1
 (class 0 = transition frame). With a per-channel tokenizer (:mod:`models.sfms.channel_tokens`) the past
 classes are (B, P, d) and the logits (B, F, d, V).
 """
@@ -60,11 +61,13 @@ class SFMSPredictor(nn.Module):
         stack = dict(width=w, heads=cfg.heads, ffn=cfg.ffn, dropout=cfg.dropout)
         self.speaker_in = nn.Linear(motion_dim, w)
         self.speaker_encoder = EncoderStack(cfg.speaker_layers, **stack)
-        self.audio_conv = nn.Conv1d(cfg.audio_bins, w, 3, padding=1)
-        self.audio_pool = nn.MaxPool1d(cfg.audio_rows_per_frame)
-        self.audio_encoder = EncoderStack(cfg.audio_layers, **stack)
+        self.hears = cfg.speaker_audio == "speech"  # D33: "none" builds no audio branch and no fusion
+        if self.hears:
+            self.audio_conv = nn.Conv1d(cfg.audio_bins, w, 3, padding=1)
+            self.audio_pool = nn.MaxPool1d(cfg.audio_rows_per_frame)
+            self.audio_encoder = EncoderStack(cfg.audio_layers, **stack)
         self.fusion = nn.ModuleList(GatedFusionBlock(w, cfg.heads, cfg.ffn, cfg.dropout)
-                                    for _ in range(cfg.fusion_blocks))
+                                    for _ in range(cfg.fusion_blocks if self.hears else 0))
         self.listener_embed = nn.Embedding(n_classes * tables, w)  # per channel: one table of V rows each
         self.listener_encoder = EncoderStack(cfg.listener_layers, **stack)
         self.segment = nn.Parameter(torch.randn(2, w) * 0.02)
@@ -89,10 +92,11 @@ class SFMSPredictor(nn.Module):
         pad = visible_pad(valid)
         pe = positions(w, cfg.width, device=dev)
         x = self.speaker_encoder(self.speaker_in(speaker * keep) + pe, pad)
-        y = self.audio_pool(nn.functional.gelu(self.audio_conv(rows.transpose(1, 2)))).transpose(1, 2)
-        y = self.audio_encoder(y + pe, pad)
-        for block in self.fusion:
-            x = block(x, y, pad)
+        if self.hears:
+            y = self.audio_pool(nn.functional.gelu(self.audio_conv(rows.transpose(1, 2)))).transpose(1, 2)
+            y = self.audio_encoder(y + pe, pad)
+            for block in self.fusion:
+                x = block(x, y, pad)
         z_l = self.listener_encoder(self._embed_past(past) + pe[: cfg.past])
         context = torch.cat([z_l + self.segment[0], x + self.segment[1]], dim=1)
         context_pad = torch.cat([torch.zeros(b, cfg.past, dtype=torch.bool, device=dev), pad], dim=1)

@@ -8,7 +8,7 @@ from dyadbench.errors import InputError
 from dyadbench.protocol.interface import ModelInfo, ModelOptions
 from dyadbench.shipped import shipped_checkpoint
 from dyadbench.training.checkpoint import file_digest
-from models.sfms.bundle import load_sfms
+from models.sfms.bundle import checkpoint_layout, load_sfms
 from models.sfms.stream import SFMSStreamingModel
 
 CHECKPOINT_DIR = Path(__file__).parent / "checkpoints"
@@ -31,6 +31,11 @@ def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
         where = "--weights" if options.weights is not None else "the shipped checkpoint"
         raise InputError(path, f"SFMS weights not found ({where}); train them with: {REPRODUCE}")
     model, meta = load_sfms(path)
-    info = ModelInfo(name="sfms", layout="flame56", version="1", weights_digest=file_digest(path),
+    layout = checkpoint_layout(meta)
+    wanted = options.extra.get("layout")
+    if wanted is not None and wanted != layout:
+        raise InputError(path, f"this SFMS checkpoint was trained on {layout} motion; the split is {wanted} "
+                               "(train one on that layout, or pass its --weights)")
+    info = ModelInfo(name="sfms", layout=layout, version="1", weights_digest=file_digest(path),
                      weights_path=str(path), config={**model.config(), "train_meta": meta})
     return SFMSStreamingModel(model, info, greedy=options.extra.get("greedy"))
