@@ -19,7 +19,9 @@ The ratio column is Sim_seq over the naive static baseline's Sim_seq.
 
     python benchmarks/bench_stygazetalk_variants.py            # trains into runs/stygazetalk-variants
     python benchmarks/bench_stygazetalk_variants.py --reuse    # re-scores existing checkpoints
-Writes benchmarks/results/stygazetalk_variants.md (the committed table).
+    python benchmarks/bench_stygazetalk_variants.py --seeds 0,1,2,3,4 --jobs 2   # the seed sweep
+Writes benchmarks/results/stygazetalk_variants.md (the committed table); with --seeds,
+benchmarks/results/stygazetalk_variants_seeds.{json,md} (see benchmarks/stygazetalk_seed_sweep.py).
 """
 
 from __future__ import annotations
@@ -49,7 +51,8 @@ from models.stygazetalk.evaluator import load_style_evaluator
 from models.stygazetalk.train_style import retrieval_accuracy, tiled_windows
 
 DATASET = "synthetic-gaze"
-VARIANTS = ("base", "se32", "se64", "se64-vel", "tfm-se64")
+VARIANT_LABELS = {"base": "Base", "se32": "SE-32", "se64": "SE-64", "se64-vel": "SE-64-VEL", "tfm-se64": "TFM-SE-64"}
+VARIANTS = tuple(VARIANT_LABELS)
 X1_SCALES = (0.25, 0.5, 0.75, 1.0)
 ABLATION = ("se64", "se64-vel")  # the velocity-loss ablation, repeated over seeds
 ABLATION_LABELS = (("se64", "SE-64"), ("se64-vel", "SE-64-VEL"))
@@ -70,6 +73,8 @@ PAPER = {  # Table 2 (All MAE, All Vel, All MEE, CE, All BAS) and Table 3 (fixat
     "TFM-SE-64": (5.659, 7.852, 71.177, 0.137, 0.197, 84.57, -0.2006, 0.6296),
     "MPGW-sim": (6.013, 7.038, 56.944, 0.876, 0.208, 75.72, -0.3860, 0.8047),  # paper row: MPGW
 }
+VARIANTS_OUT = Path("benchmarks/results/stygazetalk_variants.md")
+SEEDS_OUT = Path("benchmarks/results/stygazetalk_variants_seeds.md")
 COLUMNS = ("mae_all", "vel_all", "mee_all", "style_ce", "bas_all", "bas_delta_all", "bas_head", "bas_delta_head",
            "fix_ratio", "comp_score", "sim_gt", "sim_gt_seq")
 
@@ -80,17 +85,14 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
     for d_s in (32, 64):
         out = work / f"style-tiny-se{d_s}.pt"
         if not (reuse and out.is_file()):
-            train_style_encoder.main(["--config", f"tiny-se{d_s}", "--threads", "1", "--export", str(out)],
-                                     standalone_mode=False)
+            train_style_checkpoint(d_s, out)
         paths[f"style{d_s}"] = out
         seconds[f"SE-{d_s} encoder"] = load_style_model(out)[1]["train_seconds"]
     for variant in VARIANTS:
         out = work / f"tiny-{variant}.pt"
         if not (reuse and out.is_file()):
-            args = ["--config", f"tiny-{variant}", "--threads", "1", "--export", str(out)]
-            if variant != "base":
-                args += ["--style-encoder", str(paths["style32" if variant == "se32" else "style64"])]
-            train_generator.main(args, standalone_mode=False)
+            train_variant_checkpoint(variant, out, None if variant == "base" else
+                                     paths["style32" if variant == "se32" else "style64"])
         paths[variant] = out
         seconds[variant] = load_system(out)[1]["train_seconds"]
     for variant in ABLATION:
@@ -113,6 +115,24 @@ def _train(work: Path, reuse: bool) -> tuple[dict[str, Path], dict[str, float]]:
                                      standalone_mode=False)
             paths[key] = out
     return paths, seconds
+
+
+def train_style_checkpoint(d_s: int, out: Path, seed: int | None = None) -> None:
+    """Train the tiny SE-``d_s`` style encoder (the preset's seed unless ``seed``) into ``out``, 1 thread."""
+    seeded = [] if seed is None else ["--seed", str(seed)]
+    train_style_encoder.main(["--config", f"tiny-se{d_s}", "--threads", "1", "--export", str(out), *seeded],
+                             standalone_mode=False)
+
+
+def train_variant_checkpoint(variant: str, out: Path, style_encoder: Path | None, seed: int | None = None) -> None:
+    """Train the tiny generator preset ``tiny-<variant>`` (conditioned on ``style_encoder`` unless None; the
+    preset's seed unless ``seed``) into ``out``, 1 thread, the preset's checkpoint selection."""
+    args = ["--config", f"tiny-{variant}", "--threads", "1", "--export", str(out)]
+    if style_encoder is not None:
+        args += ["--style-encoder", str(style_encoder)]
+    if seed is not None:
+        args += ["--seed", str(seed)]
+    train_generator.main(args, standalone_mode=False)
 
 
 def _large_train_root(work: Path) -> Path:
@@ -225,13 +245,28 @@ def _fmt(v) -> str:
               show_default=True, help="Folder for the variant checkpoints.")
 @click.option("--reuse", is_flag=True, help="Re-use checkpoints already in --work instead of retraining.")
 @click.option("--context", default=7, show_default=True, help="Protocol context n (history turns).")
-@click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
-              default=Path("benchmarks/results/stygazetalk_variants.md"), show_default=True,
-              help="Markdown table to write.")
-def main(work: Path, reuse: bool, context: int, out: Path) -> None:
+@click.option("--seeds", "seed_list", default=None, metavar="S1,S2,...",
+              help="Seed-sweep mode (benchmarks/stygazetalk_seed_sweep.py): train every variant and the shipped "
+                   "configuration once per seed (style encoders too) and write the mean ± s.e. table to "
+                   f"{SEEDS_OUT} instead of the single-seed table.")
+@click.option("--jobs", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Seed-sweep mode: worker processes (one training or scoring each); results do not depend on it.")
+@click.option("--budget-minutes", type=click.FloatRange(min=0, min_open=True), default=50.0, show_default=True,
+              help="Seed-sweep mode: the CPU-minute budget the measured total is checked against.")
+@click.option("--out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help=f"Result to write (default {VARIANTS_OUT}, or {SEEDS_OUT} with --seeds).")
+def main(work: Path, reuse: bool, context: int, seed_list: str | None, jobs: int, budget_minutes: float,
+         out: Path | None) -> None:
     """Train, stream and score every StyGazeTalk variant; print and write the table."""
     torch.set_num_threads(1)
     work.mkdir(parents=True, exist_ok=True)
+    if seed_list is not None:
+        from stygazetalk_seed_sweep import parse_seeds, run_seed_sweep  # benchmarks/stygazetalk_seed_sweep.py
+
+        run_seed_sweep(parse_seeds(seed_list), work / "seeds", reuse, jobs, context, budget_minutes,
+                       out or SEEDS_OUT)
+        return
+    out = out or VARIANTS_OUT
     paths, seconds = _train(work, reuse)
     test_src = DATASETS.load(DATASET)(None, "test")
     clips = list(test_src)
@@ -247,8 +282,7 @@ def main(work: Path, reuse: bool, context: int, out: Path) -> None:
     score("other session (real motion)", _arrays(clips, [clips[j].participants[0].motion for j in perm]))
     score("gaze-static", stream_items("gaze-static", ModelOptions(), clips, config))
     score("gaze-headcopy (oracle head)", stream_items("gaze-headcopy", ModelOptions(), clips, config))
-    labels = {"base": "Base", "se32": "SE-32", "se64": "SE-64", "se64-vel": "SE-64-VEL", "tfm-se64": "TFM-SE-64"}
-    for variant, label in labels.items():
+    for variant, label in VARIANT_LABELS.items():
         score(label, stream_items("stygazetalk", ModelOptions(weights=paths[variant]), clips, config))
     mpgw_sim = ModelOptions(weights=paths["se64"], extra={"seed_window": "mpgw-sim"})
     score("MPGW-sim", stream_items("stygazetalk", mpgw_sim, clips, config))
