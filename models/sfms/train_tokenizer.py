@@ -63,11 +63,13 @@ def _clip(params: list[torch.nn.Parameter], norm: float) -> None:
 
 def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray, *, motion_mean: np.ndarray,
                   motion_std: np.ndarray, seed: int, world: World | None = None,
-                  progress: bool = True) -> tuple[SFMSTokenizer, dict]:
-    """Train on normalised ``train`` sequences; returns (best model in eval mode, history)."""
+                  progress: bool = True, model_factory=SFMSTokenizer) -> tuple[SFMSTokenizer, dict]:
+    """Train on normalised ``train`` sequences; returns (best model in eval mode, history).
+    ``model_factory(cfg)`` builds the model (another tokenizer with the same training interface, e.g.
+    :class:`models.sfms.dense_vq.DenseVQVAE`; one without scorer parameters gets no second optimiser)."""
     world = world or World(0, 1, torch.device("cpu"))
     torch.manual_seed(seed)
-    model = SFMSTokenizer(cfg)
+    model = model_factory(cfg)
     model.motion_mean.copy_(torch.as_tensor(motion_mean))
     model.motion_std.copy_(torch.as_tensor(motion_std))
     model.to(world.device).train()
@@ -76,7 +78,8 @@ def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray
     gen = torch.Generator(device=world.device).manual_seed(seed * 1000 + world.rank)
     main_params, score_params = model.main_parameters(), model.scorer_parameters()
     opt_main = torch.optim.AdamW(main_params, lr=cfg.lr_main, betas=cfg.betas, weight_decay=cfg.weight_decay)
-    opt_score = torch.optim.AdamW(score_params, lr=cfg.lr_scorer, betas=cfg.betas, weight_decay=cfg.weight_decay)
+    opt_score = (torch.optim.AdamW(score_params, lr=cfg.lr_scorer, betas=cfg.betas, weight_decay=cfg.weight_decay)
+                 if score_params else torch.optim.SGD([torch.zeros(0, requires_grad=True)], lr=0.0))  # no-op
     dynamic = cfg.keyframe_mode == "dynamic"
     warm = int(round(cfg.warmup_frac * cfg.steps)) if dynamic else 0
     phase_b = cfg.steps - warm
