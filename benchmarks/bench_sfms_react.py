@@ -76,6 +76,12 @@ def predictions(name: str, data: Path, split: str, weights: Path) -> np.ndarray:
     return generate_reactions(model, speaker, [s for s, _ in source.samples], seed=0)
 
 
+def shown(path: Path) -> str:
+    """``path`` relative to the repository when inside it (results record the paths as given)."""
+    path = Path(path).resolve()
+    return str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+
+
 def child_cpu() -> float:
     """CPU seconds (user + system) of the finished child processes so far."""
     usage = resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -85,8 +91,8 @@ def child_cpu() -> float:
 def score(pred: Path, name: str, data: Path, split: str, jobs: int) -> Path:
     """``dyadbench score`` of one prediction file; its result.json copied to results/react-synth/<split>/<name>.json."""
     out = ROOT / "out" / "react-scores" / split / name
-    command = [sys.executable, "-m", "dyadbench", "score", str(pred), "--suite", "react", "--gt", str(data),
-               "--split", split, "--model", name, "--out", str(out), "-j", str(jobs)]
+    command = [sys.executable, "-m", "dyadbench", "score", shown(pred), "--suite", "react", "--gt", shown(data),
+               "--split", split, "--model", name, "--out", shown(out), "-j", str(jobs)]
     if name in react_baselines.ORACLES:
         command.append("--oracle")
     shutil.rmtree(out, ignore_errors=True)
@@ -116,6 +122,26 @@ def paired(results: dict, keys=("FRCorr", "FRDist")) -> list[str]:
             cells.append(f"{d.mean():+.4g} ± {se:.2g} ({int((d < 0).sum())} of {len(d)} lower)")
         lines.append(f"| {name} | " + " | ".join(cells) + " |")
     return lines
+
+
+def checkpoint_facts(weights: Path) -> list[str]:
+    """What the shipped checkpoint records: size, parameters, training data, steps, time, validation CE."""
+    from dyadbench.training.checkpoint import file_digest  # noqa: PLC0415
+    from models.sfms.react import load_react_sfms  # noqa: PLC0415
+
+    model, meta = load_react_sfms(weights)
+    params = [sum(p.numel() for p in part.parameters()) for part in (model.tokenizer, model.predictor)]
+    last = meta["val"][-1]
+    data = meta["data"]
+    return [f"## Checkpoint `{weights.relative_to(ROOT) if weights.is_relative_to(ROOT) else weights}`", "",
+            f"- {weights.stat().st_size / 1e6:.2f} MB, sha256 {file_digest(weights)[:16]}…; parameters: tokenizer "
+            f"{params[0]:,}, predictor {params[1]:,} (preset {meta['preset']}, seed {meta['seed']})",
+            f"- trained on {data['dataset']}/{data['split']} at {data['root']} (layout {data['layout']}): "
+            f"{data['clips_used'] - len(data['val_clips'])} dialogues, {len(data['val_clips'])} held out for "
+            "validation",
+            f"- predictor: {last['step']} steps, {meta['train_seconds']:.0f} s (as recorded by the training run); best "
+            f"validation weighted CE {meta['best_val_ce']:.3f} at step {meta['best_step']}, against "
+            f"{last['unigram_ce']:.3f} for the train class frequencies (unigram predictor)"]
 
 
 def row(label: str, values) -> str:
@@ -167,7 +193,8 @@ def main(data: Path, clips: int, splits: tuple[str, ...], weights: Path, jobs: i
     text = ("# SFMS on REACT (embedded corpus in the REACT layout)\n\n"
             "FRCorr sums over the 10 reactions (official script; range about [-10, 10]); FRSyn is reaction 0's "
             "(official). generate / score CPU s = CPU seconds to make the predictions / of `dyadbench score` "
-            f"(-j {jobs}).\n\n" + "\n\n".join(tables) + "\n\n" + "\n".join(paper) + "\n")
+            f"(-j {jobs}).\n\n" + "\n".join(checkpoint_facts(weights)) + "\n\n" + "\n\n".join(tables)
+            + "\n\n" + "\n".join(paper) + "\n")
     json_path, md_path = write_result(RESULT, text, seed=0, data=numbers)
     log.say(f"wrote {json_path} and {md_path}")
 
