@@ -209,9 +209,9 @@ def render(rows: list[dict], summary: dict, args, old_rev: str, where: dict) -> 
               f"{summary['max_metric_gap']:.3g}.", "",
               "Turns/CPU s counts the CPU time of the command and its workers: what the code costs, whatever the "
               "load; turns/s (wall) adds what two worker processes overlap, and is what a user waits for.", "",
-              f"The machine ({os.cpu_count()} cores) was shared with other jobs (model trainings; this ran under "
-              "`nice -n 10`): the load averages above are the one-minute load, every time is an upper bound for "
-              "an idle machine, and the ratios, measured in the same run, are the numbers to read."]
+              f"Load: the one-minute load average of the machine ({os.cpu_count()} cores) before and after each "
+              "run, this benchmark's own processes included; with other work on the machine every time is an "
+              "upper bound for an idle one, and the ratios, measured in the same run, are the numbers to read."]
     loads = [r[k] for r in rows for k in ("load_before", "load_after")]
     if sum(loads) / len(loads) >= (os.cpu_count() or 1):
         lines += ["", f"Here the load (mean {sum(loads) / len(loads):.1f}, lowest {min(loads):.1f}) exceeded the "
