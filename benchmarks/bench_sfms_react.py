@@ -7,8 +7,8 @@ N = 2·clips mirrored samples, seed 0; the train split at its default 200 dialog
 MeanFr; all generated into ``--data`` unless present), it
 
 1. generates R = 10 reactions of 750 frames per sample with ``models/sfms/checkpoints/sfms-tiny-react.pt``
-   (:mod:`models.sfms.react`, seed 0) and the official trivial baselines GT, Random, Mime, MeanSeq, MeanFr
-   (:mod:`baselines.react`) into ``out/react-preds/<split>/<model>.npz``;
+   (``python -m models.sfms.react``, seed 0) and the official trivial baselines GT, Random, Mime, MeanSeq,
+   MeanFr (``python -m baselines.react NAME``) into ``out/react-preds/<split>/<model>.npz``;
 2. scores each with ``dyadbench score PRED --suite react --gt DATA --split SPLIT --model NAME --out
    out/react-scores/<split>/<model>`` (GT with ``--oracle``) and copies its ``result.json`` to
    ``results/react-synth/<split>/<model>.json`` (the leaderboard's rows, ``leaderboards/react_wide.csv``);
@@ -20,11 +20,11 @@ Then regenerate the tables: ``dyadbench leaderboard results/ --latex --table1 --
 
 from __future__ import annotations
 
+import os
 import resource
 import shutil
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import click
@@ -36,7 +36,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from output import Transcript, write_result  # noqa: E402  (benchmarks/output.py)
 from baselines import react as react_baselines  # noqa: E402
-from dyadbench import atomic  # noqa: E402
 from dyadbench.datasets.react import ReactSplit  # noqa: E402
 from dyadbench.metrics.react import FRAMES  # noqa: E402
 from dyadbench.results import load_result  # noqa: E402
@@ -61,19 +60,16 @@ def ensure_split(data: Path, split: str, clips: int | None) -> None:
     write_react_split(data, split=split, clips=want, seed=0, progress=False, force=True)
 
 
-def predictions(name: str, data: Path, split: str, weights: Path) -> np.ndarray:
-    if name != "sfms":
-        return react_baselines.predictions(name, data, split, seed=0)
-    import torch  # noqa: PLC0415  (torch only here)
-
-    from models.sfms.react import generate_reactions, load_react_sfms  # noqa: PLC0415
-
-    torch.set_num_threads(1)
-
-    model, _ = load_react_sfms(weights)
-    source = ReactSplit.open(data, split)
-    _, speaker = source.ground_truth(FRAMES)
-    return generate_reactions(model, speaker, [s for s, _ in source.samples], seed=0)
+def predict(name: str, data: Path, split: str, weights: Path) -> Path:
+    """Write ``name``'s predictions for ``split`` with its documented command (seed 0); returns the .npz."""
+    pred = ROOT / "out" / "react-preds" / split / f"{name}.npz"
+    common = ["--data", shown(data), "--split", split, "--seed", "0", "--out", shown(pred)]
+    if name == "sfms":
+        command = ["-m", "models.sfms.react", "--weights", shown(weights), "--threads", "1", *common]
+    else:
+        command = ["-m", "baselines.react", name, *common]
+    subprocess.run([sys.executable, *command], check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
+    return pred
 
 
 def shown(path: Path) -> str:
@@ -98,7 +94,10 @@ def score(pred: Path, name: str, data: Path, split: str, jobs: int) -> Path:
     shutil.rmtree(out, ignore_errors=True)
     subprocess.run(command, check=True, cwd=ROOT, stdout=subprocess.DEVNULL)
     target = ROOT / "results" / "react-synth" / split / f"{name}.json"
-    atomic.write_bytes(target, (out / "result.json").read_bytes())
+    target.parent.mkdir(parents=True, exist_ok=True)
+    staged = target.with_name(f".{target.name}.tmp")
+    shutil.copyfile(out / "result.json", staged)
+    os.replace(staged, target)  # the result file appears whole or not at all
     return target
 
 
@@ -169,18 +168,16 @@ def main(data: Path, clips: int, splits: tuple[str, ...], weights: Path, jobs: i
                  "|---" * (len(COLUMNS) + 3) + "|"]
         numbers[split], results = {}, {}
         for name in MODELS:
-            t0 = time.process_time()
-            array = predictions(name, data, split, weights)
-            pred = ROOT / "out" / "react-preds" / split / f"{name}.npz"
-            atomic.save_npz(pred, predictions=array)
-            t1 = time.process_time()
+            cpu = child_cpu()
+            pred = predict(name, data, split, weights)
+            made = child_cpu() - cpu
             cpu = child_cpu()
             result = results[name] = load_result(score(pred, name, data, split, jobs))
             scored = child_cpu() - cpu
             values = [result.metrics[c] for c in COLUMNS]
-            numbers[split][name] = {**dict(zip(COLUMNS, values)), "generate_cpu_s": t1 - t0, "score_cpu_s": scored}
+            numbers[split][name] = {**dict(zip(COLUMNS, values)), "generate_cpu_s": made, "score_cpu_s": scored}
             lines.append(row(name + (" (oracle)" if result.model.oracle else ""), values)
-                         + f" {t1 - t0:.0f} | {scored:.0f} |")
+                         + f" {made:.0f} | {scored:.0f} |")
             log.say(lines[-1])
         pairs = paired(results)
         lines += ["", f"Paired over the {split} samples (FRCorr: higher is better; FRDist: lower is better):", "",
@@ -192,7 +189,8 @@ def main(data: Path, clips: int, splits: tuple[str, ...], weights: Path, jobs: i
     paper += [row(name, values) for name, values in PAPER.items()]
     text = ("# SFMS on REACT (embedded corpus in the REACT layout)\n\n"
             "FRCorr sums over the 10 reactions (official script; range about [-10, 10]); FRSyn is reaction 0's "
-            "(official). generate / score CPU s = CPU seconds to make the predictions / of `dyadbench score` "
+            "(official). generate / score CPU s = CPU seconds of the command that makes the predictions (`python -m "
+            "models.sfms.react` / `python -m baselines.react NAME`) / of `dyadbench score` "
             f"(-j {jobs}).\n\n" + "\n".join(checkpoint_facts(weights)) + "\n\n" + "\n\n".join(tables)
             + "\n\n" + "\n".join(paper) + "\n")
     json_path, md_path = write_result(RESULT, text, seed=0, data=numbers)
