@@ -48,8 +48,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_sfms_keyframes import equal_bits_arm  # noqa: E402
-from output import write_result  # noqa: E402  (benchmarks/output.py)
-from dyadbench import atomic  # noqa: E402
+from output import write_cache_entry, write_result  # noqa: E402  (benchmarks/output.py)
 from dyadbench.registry import DATASETS  # noqa: E402
 from models.sfms.ablation import (agent_motions_and_masks, code_usage, frame_errors, masked_windows,  # noqa: E402
                                   mse_by_cut, window_bits)
@@ -265,7 +264,7 @@ def main(ks, channel_ks, seeds, steps, batch, lr, samples, levels, downsample, d
         for (arm, seed), future in zip(jobs_list, futures):
             r = json.loads(cached[arm, seed].read_text()) if future is None else future.result()
             if future is not None and cache:
-                atomic.write_json(cached[arm, seed], r)
+                write_cache_entry(cached[arm, seed], r)
             runs[arm].append(r)
             click.echo(f"{arm.label:24s} k={arm.k:2d} codes={arm.n_codes:6d} seed {seed}: listening MSE z "
                        f"{r['listen_mse_z']:.4f}, whole {r['mse_z']:.4f}, best step {r['best_step']} "

@@ -117,3 +117,10 @@ def write_result(out: str | Path, markdown: str, *, seed: int | list[int] | None
               "machine": machine_facts(), "markdown": markdown.rstrip("\n") + "\n", "data": data}
     atomic.write_texts({json_path: atomic.to_json(record), md_path: render_markdown(record)})
     return json_path, md_path
+
+
+def write_cache_entry(path: str | Path, data: Any) -> Path:
+    """Write one finished run of a benchmark's ``--cache`` folder (JSON, atomically): an intermediate that
+    lets a rerun skip the run, never a result (results go through :func:`write_result`)."""
+    atomic.write_json(path, data)
+    return Path(path)
