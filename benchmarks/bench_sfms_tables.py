@@ -49,6 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_sfms_keyframes import equal_bits_arm  # noqa: E402
 from output import write_cache_entry, write_result  # noqa: E402  (benchmarks/output.py)
+from seed_stats import mean_se  # noqa: E402  (benchmarks/seed_stats.py)
 from dyadbench.registry import DATASETS  # noqa: E402
 from models.sfms.ablation import (agent_motions_and_masks, code_usage, frame_errors, masked_windows,  # noqa: E402
                                   mse_by_cut, window_bits)
@@ -181,12 +182,6 @@ def _cache_file(folder: Path, job: tuple[Arm, int], settings: dict) -> Path:
     digest = hashlib.sha256(json.dumps(settings, sort_keys=True).encode()).hexdigest()[:10]
     levels = "x".join(map(str, arm.levels)) or "vq"
     return Path(folder) / f"{arm.kind}-k{arm.k}-{levels}-{arm.vq_codes}-d{arm.downsample}-s{seed}-{digest}.json"
-
-
-def mean_se(values: list[float]) -> tuple[float, float]:
-    """Mean and standard error (sample std / √n; NaN for one value)."""
-    v = np.asarray(values, dtype=np.float64)
-    return float(v.mean()), float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else float("nan")
 
 
 def fmt(values: list[float], digits: int = 4) -> str:

@@ -46,6 +46,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from bench_stygazetalk_variants import stream_items  # noqa: E402  (benchmarks/bench_stygazetalk_variants.py)
 from output import write_result  # noqa: E402  (benchmarks/output.py)
+from seed_stats import mean_se  # noqa: E402  (benchmarks/seed_stats.py)
 from dyadbench.metrics.gaze import sliding_windows  # noqa: E402
 from dyadbench.protocol.config import ProtocolConfig  # noqa: E402
 from dyadbench.protocol.interface import ModelOptions  # noqa: E402
@@ -136,8 +137,7 @@ def paired_tests(x: np.ndarray, y: np.ndarray) -> dict:
 
 
 def _mean_se(values: list[float]) -> str:
-    v = np.asarray(values, dtype=np.float64)
-    return f"{v.mean():.3f} ± {v.std(ddof=1) / math.sqrt(len(v)):.3f}"
+    return "{:.3f} ± {:.3f}".format(*mean_se(values))
 
 
 def _context_of_run(context: int):

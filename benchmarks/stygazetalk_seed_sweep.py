@@ -37,6 +37,7 @@ import torch
 from bench_stygazetalk_variants import (DATASET, PAPER, VARIANT_LABELS, stream_items,  # benchmarks/ on sys.path
                                         train_style_checkpoint, train_variant_checkpoint)
 from output import write_result
+from seed_stats import mean_se
 from timing import timed
 from dyadbench.metrics.sim_terms import sim_terms
 from dyadbench.protocol.config import ProtocolConfig
@@ -71,13 +72,6 @@ def parse_seeds(text: str) -> list[int]:
     if len(set(seeds)) != len(seeds) or len(seeds) < 2 or min(seeds) < 0:
         raise click.BadParameter(f"--seeds needs at least 2 distinct non-negative seeds, got {text!r}")
     return seeds
-
-
-def mean_se(values) -> tuple[float, float]:
-    """Mean and standard error (sample std / sqrt(n); NaN for a single value) of ``values``."""
-    v = np.asarray(values, dtype=np.float64)
-    se = float(v.std(ddof=1) / math.sqrt(len(v))) if len(v) > 1 else float("nan")
-    return float(v.mean()), se
 
 
 def _cell(values, scale: float = 1.0) -> str:

@@ -1,4 +1,4 @@
-"""The seed sweep of bench_stygazetalk_variants.py: seed parsing, mean ± s.e. and the SimWithGT split."""
+"""The seed sweep of bench_stygazetalk_variants.py: seed parsing, mean ± s.e. (benchmarks/seed_stats.py) and the SimWithGT split."""
 
 from __future__ import annotations
 
@@ -11,6 +11,7 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
 
+import seed_stats  # noqa: E402
 import stygazetalk_seed_sweep as sweep  # noqa: E402
 
 
@@ -22,9 +23,9 @@ def test_parse_seeds():
 
 
 def test_mean_se_hand_values():
-    m, se = sweep.mean_se([1.0, 2.0, 3.0])  # sample std 1, s.e. 1 / sqrt(3)
+    m, se = seed_stats.mean_se([1.0, 2.0, 3.0])  # sample std 1, s.e. 1 / sqrt(3)
     assert m == pytest.approx(2.0) and se == pytest.approx(1 / math.sqrt(3))
-    m1, se1 = sweep.mean_se([4.0])
+    m1, se1 = seed_stats.mean_se([4.0])
     assert m1 == 4.0 and math.isnan(se1)
 
 
