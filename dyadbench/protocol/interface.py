@@ -180,6 +180,52 @@ def predict_in_groups(turns: Sequence[TurnInput], key: Callable[[int, TurnInput]
     return out
 
 
+class StatefulStreams(StreamingModel):
+    """A streaming model whose per-stream state is one object per stream, batched across streams.
+
+    Subclasses call ``super().__init__()`` and implement ``_new_stream(ctx)`` (the state of a fresh stream,
+    validating ``ctx``), ``_group_key(i, turn)`` (turns that may share one batch share a key) and
+    ``_run(states, turns)`` (the current turn of each given stream, in order). ``start_stream`` /
+    ``predict_turn`` run one stream as a batch of one; ``start_streams`` / ``predict_turns`` keep one state per
+    slot and run each group of turns through ``_run`` (:func:`predict_in_groups`).
+    """
+
+    def __init__(self) -> None:
+        self._stream: object | None = None  # the stream of start_stream / predict_turn
+        self._slots: dict[int, object] = {}  # the streams of start_streams / predict_turns
+
+    @abc.abstractmethod
+    def _new_stream(self, ctx: StreamContext) -> object:
+        """The state of a stream starting with ``ctx`` (raises on a context the model cannot run)."""
+
+    @abc.abstractmethod
+    def _group_key(self, i: int, turn: TurnInput) -> object:
+        """Key of turn ``i``: the turns of one ``_run`` call share it."""
+
+    @abc.abstractmethod
+    def _run(self, states: list, turns: list[TurnInput]) -> list[np.ndarray]:
+        """Agent motion of the current turn of each stream (``states[b]`` with ``turns[b]``)."""
+
+    def start_stream(self, ctx: StreamContext) -> None:
+        self._stream = self._new_stream(ctx)
+
+    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
+        for slot, ctx in contexts.items():
+            self._slots[slot] = self._new_stream(ctx)
+
+    def predict_turn(self, turn: TurnInput) -> np.ndarray:
+        if self._stream is None:
+            raise RuntimeError("predict_turn called before start_stream")
+        return self._run([self._stream], [turn])[0]
+
+    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
+        missing = [t.stream for t in turns if t.stream not in self._slots]
+        if missing:
+            raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
+        return predict_in_groups(turns, self._group_key, lambda group: self._run(
+            [self._slots[turns[i].stream] for i in group], [turns[i] for i in group]))
+
+
 class OfflineModel(abc.ABC):
     """A full-sequence (non-causal) model, run by the offline protocol."""
 

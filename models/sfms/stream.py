@@ -19,14 +19,13 @@ which keeps them bit for bit too.
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import torch
 
 from dyadbench.errors import InputError
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput, predict_in_groups
+from dyadbench.protocol.interface import ModelInfo, StatefulStreams, StreamContext, TurnInput
 from models.sfms.bundle import SFMS
 from models.sfms.data import speaker_rows
 from models.sfms.infer import Roller, speaker_window
@@ -41,25 +40,17 @@ class _Stream:
     hist: torch.Tensor
 
 
-class SFMSStreamingModel(StreamingModel):
+class SFMSStreamingModel(StatefulStreams):
     def __init__(self, model: SFMS, info: ModelInfo, *, greedy: bool | None = None):
         self.roller = Roller(model, greedy=greedy)
         self.tok, self.pred = model.tokenizer, model.predictor
         self.info = info
-        self._stream: _Stream | None = None  # the stream of start_stream / predict_turn
-        self._slots: dict[int, _Stream] = {}  # the streams of start_streams / predict_turns
+        super().__init__()
 
     def _new_stream(self, ctx: StreamContext) -> _Stream:
         if ctx.user is None:
             raise InputError(ctx.clip_id, "SFMS is a listener model and needs a partner (two-participant clip)")
         return _Stream(ctx, torch.Generator().manual_seed(int(ctx.seed)), self.roller.neutral_history(1))
-
-    def start_stream(self, ctx: StreamContext) -> None:
-        self._stream = self._new_stream(ctx)
-
-    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
-        for slot, ctx in contexts.items():
-            self._slots[slot] = self._new_stream(ctx)
 
     def _inputs(self, turn: TurnInput, ctx: StreamContext) -> tuple[torch.Tensor, torch.Tensor]:
         """Normalised partner motion (1, N, d) and speech rows (1, N·rows, bins) of the turn window: the
@@ -77,25 +68,13 @@ class SFMSStreamingModel(StreamingModel):
         audio = (torch.as_tensor(rows) - self.pred.audio_mean) / self.pred.audio_std
         return motion[None], audio[None]
 
-    def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        if self._stream is None:
-            raise RuntimeError("predict_turn called before start_stream")
-        return self._roll([self._stream], [turn])[0]
-
-    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
-        missing = [t.stream for t in turns if t.stream not in self._slots]
-        if missing:
-            raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
-        return predict_in_groups(turns, self._group_key, lambda group: self._roll(
-            [self._slots[turns[i].stream] for i in group], [turns[i] for i in group]))
-
     def _group_key(self, i: int, turn: TurnInput) -> object:
         """Turns run as one batch share a key: equal turn lengths (per-channel allocation: each turn alone,
         see the module docstring)."""
         return ("alone", i) if self.tok.cfg.per_channel else turn.frames_per_turn
 
     @torch.no_grad()
-    def _roll(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
+    def _run(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
         """The current turn of each stream (turns of one length), the streams' steps batched: step k of the
         turn reads each stream's speaker window at its own frame h·F + k·future (h its history turns)."""
         cfg = self.pred.cfg

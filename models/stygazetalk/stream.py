@@ -28,7 +28,6 @@ one-frame products differently, and the autoregressive loop grows that into degr
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +35,7 @@ import torch
 
 from dyadbench.errors import ConfigError, InputError
 from dyadbench.motion import FPS, SAMPLE_RATE
-from dyadbench.protocol.interface import ModelInfo, StreamContext, StreamingModel, TurnInput, predict_in_groups
+from dyadbench.protocol.interface import ModelInfo, StatefulStreams, StreamContext, TurnInput
 from models.stygazetalk.audio import HOP
 from models.stygazetalk.generation import decoding_rng, mpgw_seed
 from models.stygazetalk.system import StyGazeTalkSystem
@@ -51,12 +50,11 @@ class _Stream:
     track: np.ndarray
 
 
-class StyGazeTalkStream(StreamingModel):
+class StyGazeTalkStream(StatefulStreams):
     def __init__(self, system: StyGazeTalkSystem, info: ModelInfo, style: torch.Tensor | None = None,
                  run_seed: int = 0):
         self.system, self.info, self.style, self.run_seed = system.eval(), info, style, run_seed
-        self._stream: _Stream | None = None  # the stream of start_stream / predict_turn
-        self._slots: dict[int, _Stream] = {}  # the streams of start_streams / predict_turns
+        super().__init__()
 
     def _new_stream(self, ctx: StreamContext) -> _Stream:
         if ctx.fps != FPS or ctx.sample_rate != SAMPLE_RATE:
@@ -67,26 +65,11 @@ class StyGazeTalkStream(StreamingModel):
                               f"M = {self.system.cfg.window}")
         return _Stream(ctx, decoding_rng(ctx.seed), np.zeros((ctx.num_turns * ctx.frames_per_turn, 7), np.float32))
 
-    def start_stream(self, ctx: StreamContext) -> None:
-        self._stream = self._new_stream(ctx)
+    def _group_key(self, i: int, turn: TurnInput) -> object:
+        """Turns of one length run as one batch."""
+        return turn.frames_per_turn
 
-    def start_streams(self, contexts: Mapping[int, StreamContext]) -> None:
-        for slot, ctx in contexts.items():
-            self._slots[slot] = self._new_stream(ctx)
-
-    def predict_turn(self, turn: TurnInput) -> np.ndarray:
-        if self._stream is None:
-            raise RuntimeError("predict_turn called before start_stream")
-        return self._turns([self._stream], [turn])[0]
-
-    def predict_turns(self, turns: Sequence[TurnInput]) -> list[np.ndarray]:
-        missing = [t.stream for t in turns if t.stream not in self._slots]
-        if missing:
-            raise RuntimeError(f"predict_turns called for slots {missing} before start_streams")
-        return predict_in_groups(turns, lambda i, turn: turn.frames_per_turn, lambda group: self._turns(
-            [self._slots[turns[i].stream] for i in group], [turns[i] for i in group]))
-
-    def _turns(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
+    def _run(self, streams: list[_Stream], turns: list[TurnInput]) -> list[np.ndarray]:
         """The current turn of each stream (turns of one length): seed turns copied, the others generated window
         by window, the windows of all generating streams at one offset within the turn in one batch."""
         cfg, F = self.system.cfg, turns[0].frames_per_turn
