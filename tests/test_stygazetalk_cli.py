@@ -36,6 +36,8 @@ def test_trainers_and_eval_with_style_transfer(root, tmp_path):
     assert "retrieval top-1" in out
     style, meta = load_style_model(se)
     assert meta["steps"] == 2 and meta["seed"] == 0 and 0.0 <= meta["val_retrieval_top1"] <= 1.0
+    assert meta["settings"] == {"device": "cpu", "threads": 1}  # how it was trained is recorded
+    assert meta["command"].startswith("dyadbench train stygazetalk-style --config tiny-se64")
 
     gen = tmp_path / "gen.pt"
     out = _invoke(["train", "stygazetalk", "--config", "tiny-se64", "--style-encoder", str(se), "--dataset", "gaze",

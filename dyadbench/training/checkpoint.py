@@ -9,6 +9,8 @@ states) for resuming. Writes are atomic. :func:`file_digest` is the ``weights_di
 from __future__ import annotations
 
 import hashlib
+import shlex
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +27,12 @@ def file_digest(path: str | Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
+
+
+def run_record(device: str, threads: int) -> dict:
+    """What a checkpoint's ``meta`` records of how it was trained: the command line (as ``dyadbench …``) and,
+    under ``settings``, the torch device and the CPU threads."""
+    return {"command": shlex.join(["dyadbench", *sys.argv[1:]]), "settings": {"device": device, "threads": threads}}
 
 
 def save_checkpoint(path: str | Path, *, model_state: dict, config: dict, meta: dict,

@@ -15,14 +15,14 @@ import torch
 from tqdm import tqdm
 
 from dyadbench import atomic
-from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real, required
+from dyadbench.cli.options import COUNT, SEED, deprecated_alias, real, required, torch_device
 from dyadbench.datasets.base import ClipSource, DyadicClip
 from dyadbench.errors import ConfigError
 from dyadbench.registry import DEFAULT_EMBEDDED
 from dyadbench.outputs import check_cache, check_file
 from dyadbench.registry import DATASETS
 from dyadbench.seeding import rng as seeded_rng
-from dyadbench.training.checkpoint import file_digest, save_checkpoint
+from dyadbench.training.checkpoint import file_digest, run_record, save_checkpoint
 from models.sfms.bundle import PREDICTOR_MODEL, TOKENIZER_MODEL, load_tokenizer
 from models.sfms.config import PREDICTOR_PRESETS, TOKENIZER_PRESETS, predictor_preset, to_dict, tokenizer_preset
 from models.sfms.data import clip_motions, directed_clips, motion_stats, normalise_directed, row_stats
@@ -97,7 +97,8 @@ def _common(f):
         click.option("--seed", type=SEED, default=0, show_default=True, help="Seed of every random choice."),
         click.option("--threads", type=COUNT, default=1, show_default=True,
                      help="torch CPU threads (1 is fastest on a shared, busy CPU)."),
-        click.option("--device", default="cpu", show_default=True, help="cpu or cuda (one GPU per process)."),
+        click.option("--device", default="cpu", show_default=True, callback=torch_device,
+                     help="cpu, cuda or cuda:N (one GPU per process); a device this machine lacks is refused."),
         click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
                      help="Checkpoint file to write (the weights to ship or pass to `dyadbench eval --weights`; "
                           "its training history goes beside it as <name>.history.json). Required."),
@@ -157,7 +158,8 @@ def train_tokenizer(preset, overrides, dataset, root, clips, val_frac, val_windo
         if world.main:
             meta = {"model": TOKENIZER_MODEL, "preset": preset, "seed": seed, "data": describe,
                     "best_val_mse_z": history["best_val_mse_z"], "best_step": history["best_step"],
-                    "train_seconds": history["train_seconds"], "world_size": world.size, "val": history["val"]}
+                    "train_seconds": history["train_seconds"], "world_size": world.size, "val": history["val"],
+                    **run_record(device, threads)}
             save_checkpoint(export, model_state=model.state_dict(), config={"tokenizer": to_dict(cfg)}, meta=meta)
             log = _write_log(export, history)
             click.echo(f"tokenizer: best validation MSE {history['best_val_mse_z']:.4f} (z-space) at step "
@@ -216,7 +218,7 @@ def train_predictor(preset, overrides, dataset, root, clips, val_frac, val_windo
                     "tokenizer": str(tokenizer_path), "tokenizer_sha256": file_digest(tokenizer_path),
                     "best_val_ce": history["best_val_ce"],
                     "best_step": history["best_step"], "train_seconds": history["train_seconds"],
-                    "world_size": world.size, "val": history["val"]}
+                    "world_size": world.size, "val": history["val"], **run_record(device, threads)}
             save_checkpoint(export, model_state=model.state_dict(), config=model.config(), meta=meta)
             log = _write_log(export, history)
             last = history["val"][-1]

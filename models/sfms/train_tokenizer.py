@@ -34,12 +34,13 @@ def eval_windows(arrays: list[np.ndarray], window: int, limit: int = 512) -> np.
 
 @torch.no_grad()
 def reconstruction_mse(model: SFMSTokenizer, windows: np.ndarray, batch: int = 256) -> dict[str, float]:
-    """Eval-mode MSE of ``reconstruct`` on normalised windows: z-space and raw (denormalised) units."""
+    """Eval-mode MSE of ``reconstruct`` on normalised windows: z-space and raw (denormalised) units; the
+    windows go to the model's device."""
     was_training = model.training
     model.eval()
     z_sum = raw_sum = 0.0
     for i in range(0, len(windows), batch):
-        m = torch.as_tensor(windows[i: i + batch])
+        m = torch.as_tensor(windows[i: i + batch], device=model.motion_std.device)
         rec = model.reconstruct(m)
         z_sum += float((rec - m).pow(2).mean(dim=(1, 2)).sum())
         raw_sum += float((model.denormalise(rec) - model.denormalise(m)).pow(2).mean(dim=(1, 2)).sum())
@@ -64,7 +65,8 @@ def _clip(params: list[torch.nn.Parameter], norm: float) -> None:
 def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray, *, motion_mean: np.ndarray,
                   motion_std: np.ndarray, seed: int, world: World | None = None,
                   progress: bool = True, model_factory=SFMSTokenizer) -> tuple[SFMSTokenizer, dict]:
-    """Train on normalised ``train`` sequences; returns (best model in eval mode, history).
+    """Train on normalised ``train`` sequences on ``world``'s device; returns (best model on the CPU in eval
+    mode, history).
     ``model_factory(cfg)`` builds the model (another tokenizer with the same training interface, e.g.
     :class:`models.sfms.dense_vq.DenseVQVAE`; one without scorer parameters gets no second optimiser)."""
     world = world or World(0, 1, torch.device("cpu"))
@@ -129,4 +131,4 @@ def fit_tokenizer(cfg: TokenizerConfig, train: list[np.ndarray], val: np.ndarray
     if best_state is not None:
         model.load_state_dict(best_state)
     history.update(best_val_mse_z=best_val, best_step=best_step, train_seconds=time.perf_counter() - t0)
-    return model.eval(), history
+    return model.cpu().eval(), history

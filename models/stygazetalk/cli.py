@@ -9,11 +9,14 @@ from typing import Callable
 
 import click
 
-from dyadbench.cli.options import SEED, deprecated_alias, real, required
+from dyadbench.cli.options import SEED, deprecated_alias, real, required, torch_device
 from dyadbench.errors import ConfigError
 from dyadbench.outputs import check_cache, check_file
 from models.stygazetalk.config import CHECKPOINT_SELECTIONS, STYLE_INPUTS
 
+DEVICE_HELP = ("Torch device to train on: cpu, cuda or cuda:N (batches are drawn on the CPU, seeded alike on every "
+               "device; a GPU's arithmetic differs from the CPU's in the last bits, so the weights do too). The "
+               "device and the command are recorded in the checkpoint.")
 THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1; results can differ in the last bits with more)."
 DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
 
@@ -52,13 +55,15 @@ def _overrides(base, **values):
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
+@click.option("--device", default="cpu", show_default=True, callback=torch_device,
+              help=DEVICE_HELP)
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
               help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
                    "--weights`). Required.")
 @deprecated_alias("--out", "--export", "export", type=click.Path(dir_okay=False, path_type=Path))
 def train_style_encoder(config_name: str, dataset: str, root: Path | None, train_split: str, val_split: str,
                         steps: int | None, batch: int | None, seed: int | None, val_every: int, threads: int,
-                        export: Path) -> None:
+                        device: str, export: Path) -> None:
     """Stage 1: train the contrastive (NT-Xent) style encoder on adjacent windows of one speaker.
 
     Prints the validation NT-Xent curve and the top-1 same-speaker retrieval accuracy of the selected
@@ -66,6 +71,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     """
     import torch
 
+    from dyadbench.training.checkpoint import run_record
     from models.stygazetalk.checkpoints import save_style_model
     from models.stygazetalk.config import get_style_config
     from models.stygazetalk.data import load_segments
@@ -80,12 +86,13 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
     train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
     train = load_segments(train_src, cfg.angle_limit_deg, min_frames)
     val = load_segments(val_src, cfg.angle_limit_deg, min_frames)
-    model, log = fit(cfg, train, val, val_every=val_every)
+    model, log = fit(cfg, train, val, val_every=val_every, device=device)
     windows, speakers, _ = tiled_windows(val, cfg.window)
     acc, chance = retrieval_accuracy(model.embed_degrees(windows), speakers)
     meta = {"data": {"train": train_src.describe(), "val": val_src.describe()}, "seed": cfg.seed,
             "steps": cfg.steps, "best_step": log.best_step, "best_val_nt_xent": log.best_val,
-            "train_seconds": log.seconds, "val_retrieval_top1": acc, "val_retrieval_chance": chance,
+            "train_seconds": log.seconds, **run_record(device, threads),
+            "val_retrieval_top1": acc, "val_retrieval_chance": chance,
             "curve": log.curve()}
     path = save_style_model(export, model, meta)
     cross, cross_chance = cross_session_retrieval(model, val, train)
@@ -120,6 +127,8 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
                    "literal reading, covers the targets), past = the M frames before the first scored target "
                    "(leak-free, as at inference), preceding = the M frames before the motion inputs.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
+@click.option("--device", default="cpu", show_default=True, callback=torch_device,
+              help=DEVICE_HELP)
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
               help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
                    "--weights`). Required.")
@@ -127,7 +136,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
 def train_generator(config_name: str, style_path: Path | None, dataset: str, root: Path | None, train_split: str,
                     val_split: str, steps: int | None, batch: int | None, lam: float | None,
                     rollout_prob: float | None, seed: int | None, selection: str | None, style_input: str | None,
-                    threads: int, export: Path) -> None:
+                    threads: int, device: str, export: Path) -> None:
     """Stage 2: train the motion generator (teacher forcing, style encoder frozen).
 
     The kept weights are those with the lowest teacher-forced validation loss (the preset's selection),
@@ -135,7 +144,7 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     """
     import torch
 
-    from dyadbench.training.checkpoint import file_digest
+    from dyadbench.training.checkpoint import file_digest, run_record
     from models.stygazetalk.checkpoints import load_style_model, save_system, system_from_style
     from models.stygazetalk.config import get_generator_config
     from models.stygazetalk.data import load_segments
@@ -159,10 +168,11 @@ def train_generator(config_name: str, style_path: Path | None, dataset: str, roo
     train_src, val_src = _open(dataset, root, train_split), _open(dataset, root, val_split)
     train = load_segments(train_src, cfg.angle_limit_deg, cfg.window + 1 + pre)
     val = load_segments(val_src, cfg.angle_limit_deg, cfg.window + 1 + pre)
-    log = fit(system, train, val)
+    log = fit(system, train, val, device=device)
     meta = {"data": {"train": train_src.describe(), "val": val_src.describe()}, "seed": cfg.seed,
             "steps": cfg.steps, "style_encoder_digest": style_digest, "best_step": log.best_step,
             "best_val_loss": log.best_val, "step0_val_loss": log.step0_val_loss, "train_seconds": log.seconds,
+            **run_record(device, threads),
             "train_windows": log.train_windows,
             "curve": log.curve()}
     path = save_system(export, system, meta)

@@ -126,41 +126,48 @@ def fit_audio_norm(system: StyGazeTalkSystem, train: list[Segment]) -> None:
 
 
 @torch.no_grad()
-def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size: int) -> torch.Tensor:
+def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size: int,
+                  device: str = "cpu") -> torch.Tensor:
     """``size`` teacher-forced residual vectors (target − output) drawn without replacement from ``bank``
     (seeded by the config seed), the pool of sampled decoding (X1)."""
     system.eval()
     residuals = []
     for lo in range(0, len(bank), batch):
-        rows = torch.from_numpy(bank.motion[lo:lo + batch])
+        rows = _rows(bank.motion[lo:lo + batch], device)
         window = rows[:, -(system.cfg.window + 1):]
         x_in, target = window[:, :-1], window[:, 1:]
         style = system.style(style_window(system.cfg, rows))
-        pred = system.generator(torch.from_numpy(bank.audio[lo:lo + batch]), x_in, style)
+        pred = system.generator(_rows(bank.audio[lo:lo + batch], device), x_in, style)
         residuals.append((target - pred).reshape(-1, target.shape[-1]))
     r = torch.cat(residuals)
     pick = np.random.default_rng(derive_seed("stygazetalk-residuals", system.cfg.seed)).choice(
         len(r), size=size, replace=len(r) < size)
-    return r[torch.from_numpy(pick)]
+    return r[torch.from_numpy(pick).to(r.device)]
 
 
-def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
+def _rows(array: np.ndarray, device: str) -> torch.Tensor:
+    """Bank rows as a tensor on ``device``."""
+    return torch.from_numpy(array).to(device)
+
+
+def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int, device: str = "cpu") -> float:
     """Teacher-forced validation value of the selection criterion: L_gen, or L_mse alone for "val-mse"."""
     term = 1 if system.cfg.checkpoint_selection == "val-mse" else 0
     system.eval()
     total, n = 0.0, 0
     with torch.no_grad():
         for lo in range(0, len(bank), batch):
-            motion = torch.from_numpy(bank.motion[lo:lo + batch])
-            loss = window_loss(system, motion, torch.from_numpy(bank.audio[lo:lo + batch]))[term]
+            motion = _rows(bank.motion[lo:lo + batch], device)
+            loss = window_loss(system, motion, _rows(bank.audio[lo:lo + batch], device))[term]
             total += loss.item() * motion.shape[0]
             n += motion.shape[0]
     return total / n
 
 
 def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[Segment], *,
-                    progress: bool = True, history: int | None = None) -> GeneratorTrainLog:
-    """Train ``system.generator`` in place (normalisers and style encoder must already be set).
+                    progress: bool = True, history: int | None = None, device: str = "cpu") -> GeneratorTrainLog:
+    """Train ``system.generator`` in place (normalisers and style encoder must already be set) on ``device``;
+    the system is back on the CPU when it returns. Batches are drawn on the CPU, seeded alike on every device.
 
     ``history``: see :func:`banks_for` (None: the windows the style input needs)."""
     cfg = system.cfg
@@ -170,17 +177,18 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
     fit_audio_norm(system, train)
     train_bank, val_bank = banks_for(system, train, val, history)
     rng = np.random.default_rng(derive_seed("stygazetalk-generator-batches", cfg.seed))
+    system.to(device)
     params = [p for p in system.generator.parameters() if p.requires_grad]
     opt = torch.optim.Adam(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: _cosine(k, cfg))
     log = GeneratorTrainLog(train_windows=len(train_bank))
-    log.step0_val_loss = _val_loss(system, val_bank, cfg.batch)
+    log.step0_val_loss = _val_loss(system, val_bank, cfg.batch, device)
     start = time.perf_counter()
     for step in tqdm(range(1, cfg.steps + 1), desc=f"generator {cfg.name}", disable=not progress or None):
         system.train()
         idx = rng.integers(0, len(train_bank), size=cfg.batch)
         rollout = cfg.rollout_prob > 0 and rng.random() < cfg.rollout_prob
-        loss = window_loss(system, torch.from_numpy(train_bank.motion[idx]), torch.from_numpy(train_bank.audio[idx]),
+        loss = window_loss(system, _rows(train_bank.motion[idx], device), _rows(train_bank.audio[idx], device),
                            rollout=rollout)[0]
         opt.zero_grad()
         loss.backward()
@@ -188,11 +196,11 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
         opt.step()
         sched.step()
         if step % cfg.val_every == 0 or step == cfg.steps:
-            log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch), system)
+            log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch, device), system)
     if cfg.checkpoint_selection != "last":
         log.restore_best(system)
-    system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
-    system.eval()
+    system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0], device))
+    system.cpu().eval()
     log.seconds = time.perf_counter() - start
     return log
 

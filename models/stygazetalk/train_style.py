@@ -53,7 +53,9 @@ def _pair_labels(segments: list[Segment], pairs, cfg: StyleEncoderConfig) -> tor
 
 
 def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list[Segment], *,
-                        val_every: int = 50, progress: bool = True) -> tuple[StyleModel, TrainLog]:
+                        val_every: int = 50, progress: bool = True, device: str = "cpu") -> tuple[StyleModel, TrainLog]:
+    """Train the style encoder on ``device`` (batches are drawn on the CPU, seeded alike on every device);
+    returns the selected weights on the CPU, in eval mode, and the training log."""
     torch.manual_seed(derive_seed("stygazetalk-style", cfg.seed))
     model = StyleModel(cfg)
     model.motion_norm.load_state_dict(ZScore.fit(stacked_motion(train)).state_dict())
@@ -69,15 +71,17 @@ def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list
     val_batch = min(cfg.batch_pairs, 2 * len({s.session for s in val}))  # small validation splits
     for _ in range(VAL_BATCHES):
         a, b = sample_style_pairs(val, val_rng, batch=val_batch, **sample)
-        val_batches.append((_pair_tensors(val, norm_val, a, cfg.window), _pair_tensors(val, norm_val, b, cfg.window),
-                            _pair_labels(val, a, cfg)))
+        val_batches.append((_pair_tensors(val, norm_val, a, cfg.window).to(device),
+                            _pair_tensors(val, norm_val, b, cfg.window).to(device), _pair_labels(val, a, cfg)))
     rng = np.random.default_rng(derive_seed("stygazetalk-style-train", cfg.seed))
+    model.to(device)
     opt = torch.optim.Adam(model.encoder.parameters(), lr=cfg.lr)
     log, start = TrainLog(), time.perf_counter()
     for step in tqdm(range(1, cfg.steps + 1), desc=f"style {cfg.name}", disable=not progress or None):
         model.train()
         a, b = sample_style_pairs(train, rng, batch=cfg.batch_pairs, **sample)
-        xa, xb = _pair_tensors(train, norm_train, a, cfg.window), _pair_tensors(train, norm_train, b, cfg.window)
+        xa = _pair_tensors(train, norm_train, a, cfg.window).to(device)
+        xb = _pair_tensors(train, norm_train, b, cfg.window).to(device)
         loss = nt_xent(model.encoder(xa), model.encoder(xb), cfg.temperature, cfg.loss_reduction,
                        _pair_labels(train, a, cfg))
         opt.zero_grad()
@@ -90,7 +94,7 @@ def train_style_encoder(cfg: StyleEncoderConfig, train: list[Segment], val: list
                                                   cfg.loss_reduction, vl).item() for va, vb, vl in val_batches]))
             log.record(step, loss.item(), val_loss, model)
     log.restore_best(model)
-    model.eval()
+    model.cpu().eval()
     log.seconds = time.perf_counter() - start
     return model, log
 
