@@ -152,5 +152,7 @@ MODELS.add("dualtalk-offline", "models.dualtalk.registry:build_dualtalk_offline"
            ("reference",))
 MODELS.add("sfms", "models.sfms.registry:build_sfms",
            "SFMS: sparse keyframe tokenizer + listening-head predictor", ("reference",))
+MODELS.add("sfms-channel", "models.sfms.registry:build_sfms_channel",
+           "SFMS with per-channel keyframe allocation (the paper's default; shipped for corpus v2)", ("reference",))
 MODELS.add("stygazetalk", "models.stygazetalk.registry:build_stygazetalk",
            "StyGazeTalk: style-aware gaze-head generation from speech", ("reference", "gaze"))

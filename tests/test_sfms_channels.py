@@ -212,3 +212,37 @@ def test_cli_trains_both_stages_per_channel(tmp_path, monkeypatch):
     assert res.exit_code == 0, res.output
     model, _ = load_sfms(full)
     assert model.predictor.channels == 56 and model.tokenizer.cfg.per_channel
+
+
+def test_the_shipped_per_channel_checkpoint_loads_as_sfms_channel():
+    from models.sfms.registry import CHANNEL_STEM, build_sfms_channel
+
+    path = shipped("synthetic-v2", CHANNEL_STEM)
+    assert path.name == "sfms-tiny-channel-v2.pt" and path.is_file()  # a missing shipped file fails
+    model = build_sfms_channel(ModelOptions(dataset="synthetic-v2"))
+    assert model.info.name == "sfms-channel" and model.info.weights_path == str(path)
+    assert model.info.config["tokenizer"]["mask_sharing"] == "channel"
+    assert model.roller.neutral_history(1).shape == (1, 40, 56)  # classes per frame and channel
+    clip = make_clips("test", 1, duration_s=3.0)[0]
+    from dyadbench.protocol.streaming import stream_agent
+
+    out = stream_agent(model, clip, "speaker2", ProtocolConfig(context=1, seed=0)).motion
+    assert out.shape == clip.participant("speaker2").motion.shape and np.isfinite(out).all()
+
+
+def test_sfms_channel_refuses_shared_mask_weights():
+    from dyadbench.errors import InputError
+    from models.sfms.registry import build_sfms_channel
+
+    shared = shipped("synthetic-v2")
+    with pytest.raises(InputError, match="--model sfms") as err:
+        build_sfms_channel(ModelOptions(weights=shared))
+    assert shared.name in str(err.value)
+
+
+def test_sfms_channel_without_weights_names_the_command(tmp_path):
+    from dyadbench.errors import InputError
+    from models.sfms.registry import build_sfms_channel
+
+    with pytest.raises(InputError, match="--mask-sharing channel"):
+        build_sfms_channel(ModelOptions(weights=tmp_path / "none.pt"))
