@@ -25,11 +25,15 @@ validation, the residual pool); times the preset's step count, it gives the sing
 
     python benchmarks/bench_training_budget.py                   # both parts
     python benchmarks/bench_training_budget.py --no-measure      # the checkpoint table only
+    python benchmarks/bench_training_budget.py --measured-from benchmarks/results/training_budget.json
+        # the checkpoint table re-read, part 2 taken from an earlier run's result file (not re-measured)
 Writes benchmarks/results/training_budget.{json,md}.
 """
 
 from __future__ import annotations
 
+import json
+import re
 import sys
 import tempfile
 from pathlib import Path
@@ -221,7 +225,30 @@ def _hours(seconds: float | None) -> str:
     return NOT_RECORDED if seconds is None else f"{seconds:.0f} s ({seconds / 3600:.2f} h)"
 
 
-def _markdown(rows: list[dict], measured: dict | None, a: int, b: int, clips: int, measure_wall: float | None) -> str:
+def _minutes(seconds: float | None) -> str:
+    return "of unrecorded length" if seconds is None else f"{seconds / 60:.1f} min"
+
+
+def earlier_measurement(path: Path) -> tuple[dict, tuple[int, int], int, int, float | None]:
+    """Part 2 of an earlier result file of this benchmark: (per-stage rows, (a, b), SFMS clips, SFMS batch,
+    wall seconds of that measurement). Files written before the wall time was kept in the data give it in
+    their markdown ("whole measurement X min wall"); None where neither has it."""
+    try:
+        record = json.loads(path.read_text())
+        data = record["data"]
+        measured, steps = data["paper_size"], data["measure_steps"]
+    except (OSError, ValueError, KeyError, TypeError) as exc:
+        raise click.BadParameter(f"{path}: not a result file of this benchmark ({exc})") from None
+    if not measured:
+        raise click.BadParameter(f"{path}: holds no paper-size measurement (it was written with --no-measure)")
+    wall = data.get("measure_wall_s")
+    if wall is None and (m := re.search(r"whole measurement ([0-9.]+) min wall", record.get("markdown", ""))):
+        wall = float(m.group(1)) * 60
+    return measured, (steps[0], steps[1]), data["sfms_clips"], data["sfms_batch"], wall
+
+
+def _markdown(rows: list[dict], measured: dict | None, a: int, b: int, clips: int, measure_wall: float | None,
+              source: Path | None = None) -> str:
     lines = ["# Training budget of the shipped checkpoints", "",
              "Read from each committed checkpoint's `meta` (tensors-only load, as the product loads them); the "
              "fields used are listed in `benchmarks/bench_training_budget.py`. \"not recorded\" means the training "
@@ -252,7 +279,9 @@ def _markdown(rows: list[dict], measured: dict | None, a: int, b: int, clips: in
                   "(the preset's batch 256 needed ~13 GB of this shared 23 GB machine) and its per-step time is "
                   "scaled linearly to the preset batch; projected = per step × the preset's steps. "
                   f"CPU time, not wall time: other jobs on the shared machine do not inflate it (whole measurement "
-                  f"{measure_wall / 60:.1f} min wall). \"Few hours\" here means ≤ {FEW_HOURS:g} h.", "",
+                  f"{_minutes(measure_wall)} wall). \"Few hours\" here means ≤ {FEW_HOURS:g} h."
+                  + (f" Taken from the earlier measurement in `{source}` (not re-measured in this run)." if source
+                     else ""), "",
                   f"| stage | run batch | CPU s at {a} steps | CPU s at {b} steps | s / step at run batch | preset batch | "
                   "s / step at preset batch | preset steps | projected | trainable in a few hours? |",
                   "|---|---|---|---|---|---|---|---|---|---|"]
@@ -277,22 +306,32 @@ def _markdown(rows: list[dict], measured: dict | None, a: int, b: int, clips: in
               help="SFMS clips for the per-step measurement.")
 @click.option("--sfms-batch", type=click.IntRange(min=1), default=32, show_default=True,
               help="SFMS batch of the per-step measurement (scaled to the preset's batch).")
+@click.option("--measured-from", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=None,
+              help="Take part 2 from this earlier result file of this benchmark (its .json) instead of measuring "
+                   "again; the table then names that file.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path),
               default=Path(__file__).parent / "results" / "training_budget.md", show_default=True)
-def main(measure: bool, measure_steps: str, clips: int, sfms_batch: int, out: Path) -> None:
+def main(measure: bool, measure_steps: str, clips: int, sfms_batch: int, measured_from: Path | None,
+         out: Path) -> None:
     """Write the training budget table of every shipped checkpoint (and the paper-size per-step times)."""
     try:
         a, b = (int(x) for x in measure_steps.split(","))
     except ValueError:
         raise click.BadParameter(f"--measure-steps must be two integers A,B, got {measure_steps!r}") from None
     rows = [read_budget(p) for p in shipped_checkpoints()]
-    measured, wall = None, None
-    if measure:
+    measured, wall, source = None, None, None
+    if measured_from is not None:
+        measured, (a, b), clips, sfms_batch, wall = earlier_measurement(measured_from)
+        resolved = measured_from.resolve()
+        source = resolved.relative_to(ROOT) if resolved.is_relative_to(ROOT) else measured_from
+    elif measure:
         measured, wall, _ = timed(lambda: measure_paper_size(a, b, clips, sfms_batch))
-    text = _markdown(rows, measured, a, b, clips, wall)
+    text = _markdown(rows, measured, a, b, clips, wall, source)
     click.echo(text)
-    data = {"checkpoints": rows, "paper_size": measured, "measure_steps": [a, b] if measure else None,
-            "sfms_clips": clips if measure else None, "sfms_batch": sfms_batch if measure else None}
+    kept = measured is not None
+    data = {"checkpoints": rows, "paper_size": measured, "measure_steps": [a, b] if kept else None,
+            "sfms_clips": clips if kept else None, "sfms_batch": sfms_batch if kept else None,
+            "measure_wall_s": wall if kept else None, "measured_from": str(source) if source else None}
     write_result(out, text, seed=0 if measure else None, data=data)
 
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import sys
 from pathlib import Path
 
@@ -68,3 +69,30 @@ def test_marginal_step_seconds():
 def test_every_shipped_checkpoint_has_a_row():
     rows = [budget.read_budget(p) for p in budget.shipped_checkpoints()]
     assert rows and all(r["steps"] for r in rows)
+
+
+def test_measurement_is_taken_from_an_earlier_result(tmp_path):
+    stage = {"run_batch": 32, "cpu_seconds_at_a": 1.0, "cpu_seconds_at_b": 3.0, "per_step_at_run_batch": 0.2,
+             "batch": 32, "per_step": 0.2, "steps": 18000, "hours": 1.0}
+    data = {"paper_size": {"StyGazeTalk x": stage}, "measure_steps": [5, 15], "sfms_clips": 16, "sfms_batch": 32}
+    old = tmp_path / "old.json"
+    old.write_text(json.dumps({"data": data, "markdown": "... (whole measurement 21.0 min wall) ..."}))
+    measured, steps, clips, batch, wall = budget.earlier_measurement(old)
+    assert measured == {"StyGazeTalk x": stage} and steps == (5, 15) and (clips, batch) == (16, 32)
+    assert wall == pytest.approx(1260.0)  # from the markdown of a file written before the data kept it
+    old.write_text(json.dumps({"data": {**data, "measure_wall_s": 61.0}}))
+    assert budget.earlier_measurement(old)[4] == 61.0
+    text = budget._markdown([], measured, 5, 15, 16, 61.0, Path("old.json"))
+    assert "1.0 min wall" in text and "earlier measurement in `old.json`" in text and "| StyGazeTalk x |" in text
+
+
+@pytest.mark.parametrize("content, message", [("{}", "not a result file"),
+                                              ('{"data": {"paper_size": null, "measure_steps": null}}',
+                                               "no paper-size measurement")])
+def test_an_earlier_result_without_a_measurement_is_refused(tmp_path, content, message):
+    import click
+
+    bad = tmp_path / "bad.json"
+    bad.write_text(content)
+    with pytest.raises(click.BadParameter, match=message):
+        budget.earlier_measurement(bad)
