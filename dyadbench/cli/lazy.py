@@ -6,6 +6,8 @@ import importlib
 
 import click
 
+from dyadbench.cli.invocation import ARGV_KEY
+
 
 class LazyGroup(click.Group):
     """Sub-commands come from ``commands_table``: name -> ("module:attribute", one-line help)."""
@@ -21,6 +23,15 @@ class LazyGroup(click.Group):
             return None
         module_name, _, attr = self.commands_table[cmd_name][0].partition(":")
         return getattr(importlib.import_module(module_name), attr)
+
+    def make_context(self, info_name: str | None, args: list[str], parent: click.Context | None = None,
+                     **extra) -> click.Context:
+        """The root group's context also keeps the arguments it was given (:mod:`dyadbench.cli.invocation`)."""
+        argv = list(args)
+        ctx = super().make_context(info_name, args, parent=parent, **extra)
+        if parent is None:
+            ctx.meta[ARGV_KEY] = argv
+        return ctx
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         with formatter.section(self.section):

@@ -9,8 +9,6 @@ states) for resuming. Writes are atomic. :func:`file_digest` is the ``weights_di
 from __future__ import annotations
 
 import hashlib
-import shlex
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -30,9 +28,12 @@ def file_digest(path: str | Path) -> str:
 
 
 def run_record(device: str, threads: int) -> dict:
-    """What a checkpoint's ``meta`` records of how it was trained: the command line (as ``dyadbench …``) and,
-    under ``settings``, the torch device and the CPU threads."""
-    return {"command": shlex.join(["dyadbench", *sys.argv[1:]]), "settings": {"device": device, "threads": threads}}
+    """What a checkpoint's ``meta`` records of how it was trained: the command line (``dyadbench …`` as typed;
+    None when the trainer was called from Python, not through ``dyadbench``) and, under ``settings``, the
+    torch device and the CPU threads."""
+    from dyadbench.cli.invocation import recorded_command  # noqa: PLC0415  (click only when a trainer records)
+
+    return {"command": recorded_command(), "settings": {"device": device, "threads": threads}}
 
 
 def save_checkpoint(path: str | Path, *, model_state: dict, config: dict, meta: dict,

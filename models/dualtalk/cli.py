@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import shlex
-import sys
 from pathlib import Path
 
 import click
 
 from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
+from dyadbench.cli.invocation import recorded_command
 from dyadbench.cli.options import POSITIVE, SEED, deprecated_alias
 
 
@@ -59,5 +58,5 @@ def train_dualtalk(data: Path | None, dataset: str | None, clips: int | None, st
     source = open_train_split(data, dataset, clips)
     settings = TrainSettings(steps=steps, batch_size=batch_size, lr=lr, min_seconds=min_seconds,
                              max_seconds=max_seconds, seed=seed, save_every=save_every, device=device,
-                             command=shlex.join(["dyadbench", *sys.argv[1:]]))
+                             command=recorded_command() or "")
     click.echo(f"checkpoint: {train_dualtalk_model(cfg, source, run_dir, settings, export=export)}")

@@ -3,14 +3,13 @@
 from __future__ import annotations
 
 import functools
-import shlex
-import sys
 from pathlib import Path
 from typing import Callable
 
 import click
 
 from dyadbench.cli.eval import TRAIN_DATASET, open_train_split
+from dyadbench.cli.invocation import recorded_command
 from dyadbench.cli.options import COUNT, NON_NEGATIVE, POSITIVE, SEED, deprecated_alias
 from models.timar.config import MOTION_NORMS, PRESETS
 
@@ -79,7 +78,7 @@ def _run(variant: str, config_name: str, motion_norm: str | None, data: Path | N
     cfg = configure_for(cfg, layout_named(source.load(source.clip_ids()[0]).layout))  # flame56: unchanged
     settings = TrainSettings(epochs=epochs, batch_size=batch_size, lr=lr, warmup_epochs=warmup_epochs, seed=seed,
                              stride_turns=stride_turns, device=device, wav2vec_weights=wav2vec_weights,
-                             command=shlex.join(["dyadbench", *sys.argv[1:]]))
+                             command=recorded_command() or "")
     path = train_timar_model(cfg, source, run_dir, settings, resume=resume, export=export)
     click.echo(f"checkpoint: {path}")
 
