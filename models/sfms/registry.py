@@ -29,25 +29,27 @@ def build_sfms(options: ModelOptions) -> SFMSStreamingModel:
 
     ``options.extra["greedy"]`` (bool) overrides the configured sampling (D17).
     """
-    return _build(options, "sfms", STEM)
+    return _build(options, "sfms", STEM, channel_only=False)
 
 
 def build_sfms_channel(options: ModelOptions) -> SFMSStreamingModel:
     """SFMS with per-channel keyframe allocation (D1 ``mask_sharing="channel"``): ``options.weights`` or the
     shipped per-channel tiny checkpoint (corpus v2); weights with a shared mask are refused."""
-    return _build(options, "sfms-channel", CHANNEL_STEM)
+    return _build(options, "sfms-channel", CHANNEL_STEM, channel_only=True)
 
 
-def _build(options: ModelOptions, name: str, stem: str) -> SFMSStreamingModel:
+def _build(options: ModelOptions, name: str, stem: str, *, channel_only: bool) -> SFMSStreamingModel:
+    """Model ``name`` from ``options.weights`` or the shipped ``stem`` checkpoint; ``channel_only`` refuses
+    weights with a shared keyframe mask."""
     path = Path(options.weights) if options.weights is not None else shipped(options.dataset, stem)
     if not path.is_file():
         where = "--weights" if options.weights is not None else "the shipped checkpoint"
-        sharing = " --mask-sharing channel" if stem == CHANNEL_STEM else ""
+        sharing = " --mask-sharing channel" if channel_only else ""
         raise InputError(path, f"{name} weights not found ({where}); train them with: "
                                f"{REPRODUCE.format(sharing=sharing, stem=stem)}")
     model, meta = load_sfms(path)
-    if name == "sfms-channel" and not model.tokenizer.cfg.per_channel:
-        raise InputError(path, "sfms-channel needs per-channel keyframe weights (mask_sharing channel); these share "
+    if channel_only and not model.tokenizer.cfg.per_channel:
+        raise InputError(path, f"{name} needs per-channel keyframe weights (mask_sharing channel); these share "
                                "one mask across channels: evaluate them with --model sfms")
     layout = checkpoint_layout(meta)
     wanted = options.extra.get("layout")

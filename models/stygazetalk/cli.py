@@ -17,6 +17,7 @@ from models.stygazetalk.config import CHECKPOINT_SELECTIONS, STYLE_INPUTS
 DEVICE_HELP = ("Torch device to train on: cpu, cuda or cuda:N (batches are drawn on the CPU, seeded alike on every "
                "device; a GPU's arithmetic differs from the CPU's in the last bits, so the weights do too). The "
                "device and the command are recorded in the checkpoint.")
+DEVICE_OPTION = click.option("--device", default="cpu", show_default=True, callback=torch_device, help=DEVICE_HELP)
 THREADS_HELP = "Torch CPU threads (the committed tiny checkpoints were trained with 1; results can differ in the last bits with more)."
 DATASET_HELP = "Registered gaze-head dataset (see `dyadbench datasets`): synthetic-gaze (embedded) or gaze."
 
@@ -55,8 +56,7 @@ def _overrides(base, **values):
 @click.option("--val-every", type=click.IntRange(min=1), default=50, show_default=True,
               help="Evaluate the validation NT-Xent every this many steps.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
-@click.option("--device", default="cpu", show_default=True, callback=torch_device,
-              help=DEVICE_HELP)
+@DEVICE_OPTION
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
               help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
                    "--weights`). Required.")
@@ -127,8 +127,7 @@ def train_style_encoder(config_name: str, dataset: str, root: Path | None, train
                    "literal reading, covers the targets), past = the M frames before the first scored target "
                    "(leak-free, as at inference), preceding = the M frames before the motion inputs.")
 @click.option("--threads", type=click.IntRange(min=1), default=1, show_default=True, help=THREADS_HELP)
-@click.option("--device", default="cpu", show_default=True, callback=torch_device,
-              help=DEVICE_HELP)
+@DEVICE_OPTION
 @click.option("--export", type=click.Path(dir_okay=False, path_type=Path), default=None, callback=required,
               help="Checkpoint file to write (atomically; the weights to ship or pass to `dyadbench eval "
                    "--weights`). Required.")

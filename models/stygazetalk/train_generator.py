@@ -126,11 +126,11 @@ def fit_audio_norm(system: StyGazeTalkSystem, train: list[Segment]) -> None:
 
 
 @torch.no_grad()
-def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size: int,
-                  device: str = "cpu") -> torch.Tensor:
+def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size: int) -> torch.Tensor:
     """``size`` teacher-forced residual vectors (target − output) drawn without replacement from ``bank``
-    (seeded by the config seed), the pool of sampled decoding (X1)."""
+    (seeded by the config seed), the pool of sampled decoding (X1), on the system's device."""
     system.eval()
+    device = _device(system)
     residuals = []
     for lo in range(0, len(bank), batch):
         rows = _rows(bank.motion[lo:lo + batch], device)
@@ -145,15 +145,21 @@ def residual_pool(system: StyGazeTalkSystem, bank: WindowBank, batch: int, size:
     return r[torch.from_numpy(pick).to(r.device)]
 
 
-def _rows(array: np.ndarray, device: str) -> torch.Tensor:
+def _device(system: StyGazeTalkSystem) -> torch.device:
+    """The device the system's weights are on."""
+    return system.residual_pool.device
+
+
+def _rows(array: np.ndarray, device: torch.device | str) -> torch.Tensor:
     """Bank rows as a tensor on ``device``."""
     return torch.from_numpy(array).to(device)
 
 
-def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int, device: str = "cpu") -> float:
+def _val_loss(system: StyGazeTalkSystem, bank: WindowBank, batch: int) -> float:
     """Teacher-forced validation value of the selection criterion: L_gen, or L_mse alone for "val-mse"."""
     term = 1 if system.cfg.checkpoint_selection == "val-mse" else 0
     system.eval()
+    device = _device(system)
     total, n = 0.0, 0
     with torch.no_grad():
         for lo in range(0, len(bank), batch):
@@ -182,7 +188,7 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
     opt = torch.optim.Adam(params, lr=cfg.lr, weight_decay=cfg.weight_decay)
     sched = torch.optim.lr_scheduler.LambdaLR(opt, lambda k: _cosine(k, cfg))
     log = GeneratorTrainLog(train_windows=len(train_bank))
-    log.step0_val_loss = _val_loss(system, val_bank, cfg.batch, device)
+    log.step0_val_loss = _val_loss(system, val_bank, cfg.batch)
     start = time.perf_counter()
     for step in tqdm(range(1, cfg.steps + 1), desc=f"generator {cfg.name}", disable=not progress or None):
         system.train()
@@ -196,10 +202,10 @@ def train_generator(system: StyGazeTalkSystem, train: list[Segment], val: list[S
         opt.step()
         sched.step()
         if step % cfg.val_every == 0 or step == cfg.steps:
-            log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch, device), system)
+            log.record(step, loss.item(), _val_loss(system, val_bank, cfg.batch), system)
     if cfg.checkpoint_selection != "last":
         log.restore_best(system)
-    system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0], device))
+    system.residual_pool.copy_(residual_pool(system, val_bank, cfg.batch, system.residual_pool.shape[0]))
     system.cpu().eval()
     log.seconds = time.perf_counter() - start
     return log
