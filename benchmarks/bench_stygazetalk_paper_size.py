@@ -1,21 +1,22 @@
 """StyGazeTalk at the paper's size against the shipped tiny checkpoint (issue #26's paper-size run).
 
 The paper-size pair is trained with the user's trainers and the ``base`` presets (the spec's sizes: style
-encoder 4 layers, generator LSTM 3 × 256, 20,000 and 30,000 steps, batch 32 pairs and 64 windows):
+encoder 4 layers, generator LSTM 3 × 256, 20,000 and 30,000 steps, batch 32 pairs and 64 windows); the
+committed pair in ``models/stygazetalk/weights/`` was made with
 
     dyadbench train stygazetalk-style --config base-se64 --export runs/paper/style-encoder-base-se64.pt
     dyadbench train stygazetalk --config base-se64-vel-x1 --style-encoder runs/paper/style-encoder-base-se64.pt \\
-        --export runs/paper/stygazetalk-base-se64-vel-x1.pt
+        --threads 2 --export runs/paper/stygazetalk-base-se64-vel-x1.pt
 
-(`--device cuda` trains either on a GPU.) This benchmark reads both checkpoints' records (steps, selected step,
-training time, device, validation loss), streams both generators over the test and ood sessions of the embedded
-gaze corpus through the protocol (n = ``--context``), scores them with the gaze–head suite and the shipped
-style evaluator, once with each checkpoint's own decoding (X1: sampled eye angles, protocol seed 0) and once
-with mean decoding (deterministic), and reports the style encoders' speaker retrieval. The naive static
-baseline and GT run in the same pass as references.
+(`--device cuda` trains either on a GPU; each file records its command, device and training time.) This
+benchmark reads both checkpoints' records (steps, selected step, training time, device, validation loss),
+refuses a generator whose recorded style encoder is not the file given, streams both generators over the
+test and ood sessions of the embedded gaze corpus through the protocol (n = ``--context``), scores them with
+the gaze–head suite and the shipped style evaluator, once with each checkpoint's own decoding (X1: sampled
+eye angles, protocol seed 0) and once with mean decoding (deterministic), and reports the style encoders'
+speaker retrieval. The naive static baseline and GT run in the same pass as references.
 
-    python benchmarks/bench_stygazetalk_paper_size.py --paper runs/paper/stygazetalk-base-se64-vel-x1.pt \\
-        --paper-style runs/paper/style-encoder-base-se64.pt
+    python benchmarks/bench_stygazetalk_paper_size.py      # the committed pair; --paper/--paper-style for others
 Writes benchmarks/results/stygazetalk_paper_size.{json,md}.
 """
 
@@ -36,8 +37,8 @@ from dyadbench.protocol.interface import ModelOptions  # noqa: E402
 from dyadbench.registry import DATASETS  # noqa: E402
 from dyadbench.scoring.gaze import score_arrays  # noqa: E402
 from dyadbench.training.checkpoint import file_digest  # noqa: E402
-from models.stygazetalk.checkpoints import (SHIPPED_MODEL, SHIPPED_STYLE_ENCODER, load_style_model,  # noqa: E402
-                                            load_system)
+from models.stygazetalk.checkpoints import (PAPER_SIZE_MODEL, PAPER_SIZE_STYLE_ENCODER, SHIPPED_MODEL,  # noqa: E402
+                                            SHIPPED_STYLE_ENCODER, load_style_model, load_system)
 from models.stygazetalk.data import load_segments  # noqa: E402
 from models.stygazetalk.evaluator import load_style_evaluator  # noqa: E402
 
@@ -57,7 +58,18 @@ def record(path: Path, style: bool) -> dict:
             "best_step": meta.get("best_step"), "train_seconds": meta.get("train_seconds"),
             "device": settings.get("device", "not recorded"), "threads": settings.get("threads", "not recorded"),
             "best_val": meta.get("best_val_nt_xent" if style else "best_val_loss"),
-            "train_windows": meta.get("train_windows"), "command": meta.get("command", "not recorded")}
+            "train_windows": meta.get("train_windows"), "command": meta.get("command", "not recorded"),
+            "style_encoder_digest": meta.get("style_encoder_digest")}
+
+
+def check_pair(generator: dict, style: dict) -> None:
+    """Refuse a generator whose recorded stage-1 file (``meta.style_encoder_digest``) is not ``style``."""
+    recorded = generator["style_encoder_digest"]
+    if recorded != style["sha256"]:
+        said = f"sha256 {recorded[:12]}…" if recorded else "no recorded style encoder"
+        raise click.UsageError(f"{generator['path']} was trained on a style encoder with {said}, not on "
+                               f"{style['path']} (sha256 {style['sha256'][:12]}…); pass the encoder it was "
+                               "trained on with --paper-style.")
 
 
 def metric_row(split: str, label: str, decoding: str, m: dict) -> str:
@@ -67,9 +79,10 @@ def metric_row(split: str, label: str, decoding: str, m: dict) -> str:
 
 
 @click.command()
-@click.option("--paper", type=click.Path(dir_okay=False, exists=True, path_type=Path), required=True,
-              help="Paper-size generator checkpoint (base-se64-vel-x1).")
-@click.option("--paper-style", type=click.Path(dir_okay=False, exists=True, path_type=Path), required=True,
+@click.option("--paper", type=click.Path(dir_okay=False, exists=True, path_type=Path), default=PAPER_SIZE_MODEL,
+              show_default=True, help="Paper-size generator checkpoint (base-se64-vel-x1).")
+@click.option("--paper-style", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=PAPER_SIZE_STYLE_ENCODER, show_default=True,
               help="Paper-size style-encoder checkpoint it was trained on (base-se64).")
 @click.option("--context", default=7, show_default=True, help="Protocol context n (history turns).")
 @click.option("--splits", default="test,ood", show_default=True, help="Gaze corpus splits to stream.")
@@ -82,6 +95,8 @@ def main(paper: Path, paper_style: Path, context: int, splits: str, out: Path) -
     encoders = {"tiny (shipped)": SHIPPED_STYLE_ENCODER, "paper size": paper_style}
     records = {label: {"generator": record(path, style=False), "style_encoder": record(encoders[label], style=True)}
                for label, path in generators.items()}
+    for stages in records.values():
+        check_pair(stages["generator"], stages["style_encoder"])
     rows, data_rows = [], []
     for split in splits.split(","):
         clips = list(DATASETS.load(DATASET)(None, split))

@@ -14,7 +14,8 @@ and reports, from its ``meta`` only:
   ``seconds`` of ``meta.history`` (TIMAR: each entry times one epoch), else the last ``seconds`` of a
   per-step history (DualTalk: elapsed since the start). A field that is not there is reported as
   "not recorded", never estimated;
-- machine: the recorded device and world size (no checkpoint records the CPU model or thread count);
+- machine: the recorded device, torch thread count (``meta.settings.threads``) and world size (no
+  checkpoint records the CPU model);
 - command: ``meta.command`` where recorded.
 
 Part 2 (skipped with ``--no-measure``) times the paper-size presets of StyGazeTalk (``base-se64`` style
@@ -110,9 +111,10 @@ def budget_row(name: str, checkpoint: dict) -> dict:
     else:
         epochs = NOT_RECORDED
     seconds, source = wall_seconds(meta)
-    device = _get(meta, "settings", "device")
+    device, threads = _get(meta, "settings", "device"), _get(meta, "settings", "threads")
     world = meta.get("world_size")
     machine = ", ".join(x for x in (f"device {device}" if device else None,
+                                    f"{threads} torch threads" if threads is not None else None,
                                     f"world size {world}" if world is not None else None) if x) or NOT_RECORDED
     command = meta.get("command") or _get(meta, "settings", "command") or NOT_RECORDED
     notes = []
@@ -123,7 +125,7 @@ def budget_row(name: str, checkpoint: dict) -> dict:
         notes.append(f"style encoder sha256 {meta['style_encoder_digest'][:12]}… trained separately")
     return {"checkpoint": name, "model": meta.get("model", NOT_RECORDED), "steps": steps,
             "best_step": meta.get("best_step"), "batch": batch, "epochs": epochs, "wall_seconds": seconds,
-            "wall_source": source, "machine": machine, "command": command, "seed": meta.get("seed"),
+            "wall_source": source, "machine": machine, "threads": threads, "command": command, "seed": meta.get("seed"),
             "notes": notes}
 
 
@@ -267,8 +269,9 @@ def _markdown(rows: list[dict], measured: dict | None, a: int, b: int, clips: in
         lines += ["", "Notes:", *notes]
     known = sum(r["wall_seconds"] for r in rows if r["wall_seconds"] is not None)
     lines += ["", f"Recorded training wall time over the {len(rows)} checkpoints: {known / 3600:.2f} h "
-                  f"({sum(r['wall_seconds'] is None for r in rows)} without a record). No checkpoint records the CPU "
-                  "model or the thread count; a wall time includes whatever else ran on the machine then."]
+                  f"({sum(r['wall_seconds'] is None for r in rows)} without a record). "
+                  f"{sum(r['threads'] is not None for r in rows)} of them record the torch thread count and none the "
+                  "CPU model; a wall time includes whatever else ran on the machine then."]
     if measured is not None:
         lines += ["", "## Paper-size presets on this CPU (single thread)", "",
                   f"Each stage trained with the user's trainer once untimed at {WARM_UP_STEPS} step (imports and "

@@ -47,7 +47,10 @@ def test_train_seconds_and_missing_fields(tmp_path):
     row = budget.read_budget(_save(tmp_path / "s.pt", meta, {"generator": {"batch": 32}}), root=tmp_path)
     assert (row["steps"], row["best_step"], row["wall_seconds"]) == (300, 250, 41.0)
     assert row["epochs"].startswith("≈ 16.0 passes")  # 300 x 32 / 600
-    assert row["machine"] == budget.NOT_RECORDED
+    assert row["machine"] == budget.NOT_RECORDED and row["threads"] is None
+    threaded = budget.read_budget(_save(tmp_path / "g.pt", {**meta, "settings": {"device": "cuda", "threads": 2}},
+                                        {}), root=tmp_path)
+    assert (threaded["machine"], threaded["threads"]) == ("device cuda, 2 torch threads", 2)
     bare = budget.read_budget(_save(tmp_path / "b.pt", {"model": "x"}, {}), root=tmp_path)
     assert (bare["steps"], bare["wall_seconds"], bare["epochs"]) == (None, None, budget.NOT_RECORDED)
     assert bare["wall_source"] == budget.NOT_RECORDED

@@ -4,7 +4,7 @@
 - Stage 2 (``model = "stygazetalk"``): the whole :class:`StyGazeTalkSystem` (normalisers, frozen
   style encoder, generator); ``meta["style_encoder_digest"]`` names the stage-1 file it was built on.
 
-The shipped tiny checkpoints live in ``models/stygazetalk/weights/`` (package data).
+The shipped tiny checkpoints (and the paper-size pair) live in ``models/stygazetalk/weights/`` (package data).
 """
 
 from __future__ import annotations
@@ -20,6 +20,9 @@ from models.stygazetalk.train_style import StyleModel
 WEIGHTS_DIR = Path(__file__).resolve().parent / "weights"
 SHIPPED_MODEL = WEIGHTS_DIR / "stygazetalk-tiny-se64-vel-x1.pt"  # SE-64-VEL weights, sampled eye decoding (X1)
 SHIPPED_STYLE_ENCODER = WEIGHTS_DIR / "style-encoder-tiny-se64.pt"
+# the paper's sizes (spec presets base-se64 / base-se64-vel-x1), kept for the paper-size comparison
+PAPER_SIZE_MODEL = WEIGHTS_DIR / "stygazetalk-base-se64-vel-x1.pt"
+PAPER_SIZE_STYLE_ENCODER = WEIGHTS_DIR / "style-encoder-base-se64.pt"
 STYLE_MODEL_NAME = "stygazetalk-style"
 MODEL_NAME = "stygazetalk"
 REPRODUCE = ("dyadbench train stygazetalk-style --config tiny-se64 --export runs/sgt/se64.pt && "
